@@ -1,0 +1,164 @@
+"""Observable names, sizes and the named sets of the seed; proprioception readout.
+
+Keys are dm_control's (``walker/<name>``) so observations, MoCapAct datasets
+and decoders share one vocabulary. Every environment in ``tasks`` reads the
+walker's proprioception through :class:`Proprioception`, so a decoder trained
+on tracking data sees identical inputs in any downstream task.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from tasks.walker import TORQUE_SENSOR_SCALE, TOUCH_THRESHOLD, WalkerModel
+
+PROPRIOCEPTION: dict[str, int] = {
+    "walker/actuator_activation": 56,
+    "walker/appendages_pos": 15,
+    "walker/body_height": 1,
+    "walker/end_effectors_pos": 12,
+    "walker/joints_pos": 56,
+    "walker/joints_vel": 56,
+    "walker/sensors_accelerometer": 3,
+    "walker/sensors_gyro": 3,
+    "walker/sensors_torque": 6,
+    "walker/sensors_touch": 10,
+    "walker/sensors_velocimeter": 3,
+    "walker/world_zaxis": 3,
+}
+"""Walker observables available in every task, with their sizes."""
+
+REFERENCE_PER_STEP: dict[str, int] = {
+    "walker/reference_rel_joints": 56,
+    "walker/reference_rel_bodies_pos_global": 93,
+    "walker/reference_rel_bodies_quats": 124,
+    "walker/reference_rel_bodies_pos_local": 93,
+    "walker/reference_ego_bodies_quats": 124,
+    "walker/reference_rel_root_quat": 4,
+    "walker/reference_rel_root_pos_local": 3,
+    "walker/reference_appendages_pos": 15,
+}
+"""Reference observables of the tracking task: size per entry of ``ref_steps``."""
+
+TRACKING_EXTRAS: dict[str, int] = {
+    "walker/clip_id": 1,
+    "walker/velocimeter_control": 3,
+    "walker/gyro_control": 3,
+    "walker/joints_vel_control": 56,
+    "walker/time_in_clip": 1,
+}
+"""Other tracking-task observables (sizes)."""
+
+DECODER: tuple[str, ...] = (
+    "walker/joints_pos",
+    "walker/joints_vel",
+    "walker/sensors_velocimeter",
+    "walker/sensors_gyro",
+    "walker/end_effectors_pos",
+    "walker/world_zaxis",
+    "walker/actuator_activation",
+    "walker/sensors_touch",
+    "walker/sensors_torque",
+)
+"""The low-level decoder's observables (seed B.2), in the seed's order."""
+
+OBSERVABLE_SETS: dict[str, tuple[str, ...]] = {
+    "decoder": DECODER,
+    "expert": (*DECODER, "walker/time_in_clip"),
+    "encoder": (
+        *DECODER,
+        "walker/body_height",
+        "walker/reference_rel_bodies_pos_local",
+        "walker/reference_rel_bodies_quats",
+    ),
+    "gpt": (*DECODER, "walker/body_height"),
+    "full": (*PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS),
+}
+"""Named observable sets: the seed's expert (B.1.2), encoder and decoder (B.2),
+GPT (B.4), and ``full``: everything dm_control's tracking task observes."""
+
+
+def resolve_observables(spec: str | Sequence[str], available: Sequence[str]) -> tuple[str, ...]:
+    """Turns a set name or a list of keys into a validated tuple of keys.
+
+    Args:
+        spec: A name from :data:`OBSERVABLE_SETS` or explicit keys.
+        available: The keys the environment can produce.
+
+    Raises:
+        ValueError: Unknown set name or keys, listing what is valid.
+    """
+    if isinstance(spec, str):
+        if spec not in OBSERVABLE_SETS:
+            raise ValueError(
+                f"unknown observable set {spec!r}; choose one of {', '.join(OBSERVABLE_SETS)} or pass keys"
+            )
+        keys = OBSERVABLE_SETS[spec]
+    else:
+        keys = tuple(spec)
+    unknown = [k for k in keys if k not in available]
+    if unknown:
+        raise ValueError(f"unknown observables {unknown}; this environment provides: {', '.join(available)}")
+    if len(set(keys)) != len(keys):
+        raise ValueError(f"observables listed twice in {list(keys)}")
+    return tuple(keys)
+
+
+class Proprioception:
+    """Reads the walker's proprioceptive observables from ``MjData``.
+
+    Values equal dm_control's walker observables, including its corruptors:
+    touch sensors thresholded to 0/1 and torques squashed by ``tanh``.
+
+    Args:
+        walker: The walker model.
+    """
+
+    def __init__(self, walker: WalkerModel) -> None:
+        self._walker = walker
+        self._root = walker.root_body
+        self._readers = {
+            "walker/actuator_activation": lambda d: d.act.copy(),
+            "walker/appendages_pos": self._appendages,
+            "walker/body_height": lambda d: d.xpos[self._root, 2:3].copy(),
+            "walker/end_effectors_pos": lambda d: d.sensordata[walker.sensor_end_effectors],
+            "walker/joints_pos": lambda d: d.qpos[walker.observable_qpos],
+            "walker/joints_vel": lambda d: d.qvel[walker.observable_dof],
+            "walker/sensors_accelerometer": lambda d: d.sensordata[walker.sensor_accelerometer].copy(),
+            "walker/sensors_gyro": lambda d: d.sensordata[walker.sensor_gyro].copy(),
+            "walker/sensors_torque": lambda d: np.tanh(2.0 * d.sensordata[walker.sensor_torque] / TORQUE_SENSOR_SCALE),
+            "walker/sensors_touch": lambda d: (d.sensordata[walker.sensor_touch] > TOUCH_THRESHOLD).astype(np.float64),
+            "walker/sensors_velocimeter": lambda d: d.sensordata[walker.sensor_velocimeter].copy(),
+            "walker/world_zaxis": lambda d: d.xmat[self._root, 6:9].copy(),
+        }
+        assert set(self._readers) == set(PROPRIOCEPTION)
+
+    def _appendages(self, data: mujoco.MjData) -> np.ndarray:
+        relative = data.xpos[self._walker.appendage_bodies] - data.xpos[self._root]
+        return (relative @ data.xmat[self._root].reshape(3, 3)).ravel()
+
+    def read(self, data: mujoco.MjData, key: str) -> np.ndarray:
+        """One observable as a flat float64 array."""
+        return self._readers[key](data)
+
+    def read_all(self, data: mujoco.MjData, keys: Sequence[str]) -> dict[str, np.ndarray]:
+        """Several observables (only proprioceptive keys)."""
+        return {k: self._readers[k](data) for k in keys}
+
+
+def observation_sizes(keys: Sequence[str], ref_steps: Sequence[int] = ()) -> dict[str, int]:
+    """Size of each observable; reference observables scale with ``len(ref_steps)``."""
+    sizes = {}
+    for key in keys:
+        if key in PROPRIOCEPTION:
+            sizes[key] = PROPRIOCEPTION[key]
+        elif key in REFERENCE_PER_STEP:
+            sizes[key] = REFERENCE_PER_STEP[key] * len(ref_steps)
+        elif key in TRACKING_EXTRAS:
+            sizes[key] = TRACKING_EXTRAS[key]
+        else:
+            raise KeyError(f"unknown observable {key!r}")
+    return sizes

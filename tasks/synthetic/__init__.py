@@ -1,0 +1,1 @@
+"""The built-in synthetic clip library: motions authored in task space, solved by IK."""

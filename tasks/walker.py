@@ -1,0 +1,267 @@
+"""The CMU humanoid (dm_control ``CMUHumanoidPositionControlledV2020``) as one MuJoCo model.
+
+Everything in ``tasks`` simulates the same model that dm_control's tracking task
+builds: the V2020 position-controlled walker (rescaled 1.2x, 56 position
+actuators with a 0.03 s activation filter) attached by a free joint to a flat
+floor, with the four end-effector ``framepos`` sensors the walker observables
+add. :func:`build_walker` compiles that model once through dm_control's own
+MJCF classes and precomputes every index the environments need, so the hot
+loops only do NumPy slicing on ``mujoco.MjData`` arrays.
+
+Conventions (shared by the clip files and every environment):
+
+* world frame: z up, a walker with heading 0 faces +x, its left is +y;
+* quaternions are MuJoCo's ``(w, x, y, z)``;
+* "mocap order" is dm_control's canonical CMU joint order (the ``joints`` rows
+  of a clip file); "observable order" is the actuator order (alphabetical),
+  used by ``walker/joints_pos`` and by actions.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+os.environ.setdefault("MUJOCO_GL", "egl")
+
+import mujoco
+
+CONTROL_TIMESTEP = 0.03
+"""Seconds per environment step (the clip frame period)."""
+
+PHYSICS_TIMESTEP = 0.005
+"""Seconds per MuJoCo step; six physics steps make one control step."""
+
+TORQUE_SENSOR_SCALE = 60.0
+"""dm_control squashes torque sensors as ``tanh(2 * torque / 60)``."""
+
+TOUCH_THRESHOLD = 1e-3
+"""dm_control reports a touch sensor as 1.0 above this force, else 0.0."""
+
+
+@dataclass(frozen=True)
+class WalkerModel:
+    """A compiled walker model and the indices into its ``MjData`` arrays.
+
+    Attributes:
+        model: The compiled MuJoCo model (physics timestep 0.005 s).
+        mocap_joint_names: The 56 joint names in mocap order.
+        mocap_qpos: ``qpos`` addresses of the 56 joints, mocap order.
+        mocap_dof: ``qvel`` addresses of the 56 joints, mocap order.
+        observable_qpos: ``qpos`` addresses in observable (actuator) order.
+        observable_dof: ``qvel`` addresses in observable (actuator) order.
+        mocap_to_observable: Permutation taking mocap order to observable order.
+        joint_range: ``(56, 2)`` joint limits in observable order (radians).
+        attachment_body: Body carrying the free joint; its subtree COM is the
+            walker's centre of mass.
+        root_body: The pelvis body ``walker/root`` (the egocentric frame).
+        tracking_bodies: The 31 bodies the tracking task compares (all but the
+            root, including ``face``), in dm_control's order.
+        end_effector_bodies: ``rradius, lradius, rfoot, lfoot``.
+        appendage_bodies: The end effectors followed by ``head``.
+        foot_bodies: ``lfoot, ltoes, rfoot, rtoes``: the bodies allowed to touch
+            the ground in locomotion tasks.
+        walker_geoms: Geom ids of the walker.
+        foot_geoms: Geom ids attached to ``foot_bodies``.
+        floor_geom: The ground plane geom id.
+        sensor_velocimeter: ``sensordata`` slice of the root velocimeter (3).
+        sensor_gyro: ``sensordata`` slice of the root gyro (3).
+        sensor_accelerometer: ``sensordata`` slice of the root accelerometer (3).
+        sensor_touch: ``sensordata`` indices of the 10 touch sensors.
+        sensor_torque: ``sensordata`` indices of the 6 torque sensor values.
+        sensor_end_effectors: ``sensordata`` indices of the 12 end-effector
+            ``framepos`` values (root frame).
+        actuation_scale: Per-actuator ``(upper - lower)`` joint range.
+        actuation_offset: Per-actuator ``(upper + lower)`` joint range.
+    """
+
+    model: mujoco.MjModel
+    mocap_joint_names: tuple[str, ...]
+    mocap_qpos: np.ndarray
+    mocap_dof: np.ndarray
+    observable_qpos: np.ndarray
+    observable_dof: np.ndarray
+    mocap_to_observable: np.ndarray
+    joint_range: np.ndarray
+    attachment_body: int
+    root_body: int
+    tracking_bodies: np.ndarray
+    end_effector_bodies: np.ndarray
+    appendage_bodies: np.ndarray
+    foot_bodies: np.ndarray
+    walker_geoms: np.ndarray
+    foot_geoms: np.ndarray
+    floor_geom: int
+    sensor_velocimeter: slice
+    sensor_gyro: slice
+    sensor_accelerometer: slice
+    sensor_touch: np.ndarray
+    sensor_torque: np.ndarray
+    sensor_end_effectors: np.ndarray
+    actuation_scale: np.ndarray
+    actuation_offset: np.ndarray
+
+    @property
+    def num_joints(self) -> int:
+        """Number of actuated hinge joints (56)."""
+        return len(self.mocap_qpos)
+
+    def body_id(self, name: str) -> int:
+        """Id of the walker body ``name`` (without the ``walker/`` prefix)."""
+        body = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, f"walker/{name}")
+        if body < 0:
+            raise KeyError(f"the walker has no body named {name!r}")
+        return body
+
+    def joint_qpos(self, name: str) -> int:
+        """``qpos`` address of the walker joint ``name``."""
+        joint = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_JOINT, f"walker/{name}")
+        if joint < 0:
+            raise KeyError(f"the walker has no joint named {name!r}")
+        return int(self.model.jnt_qposadr[joint])
+
+    def pose_to_actuation(self, mocap_joints: np.ndarray) -> np.ndarray:
+        """Actions in [-1, 1] whose position targets are the given joint angles.
+
+        Same mapping as dm_control's ``cmu_pose_to_actuation``.
+
+        Args:
+            mocap_joints: ``(..., 56)`` joint angles in mocap order (radians).
+
+        Returns:
+            ``(..., 56)`` actions in observable (actuator) order.
+        """
+        observable = np.asarray(mocap_joints)[..., self.mocap_to_observable]
+        return (2.0 * observable - self.actuation_offset) / self.actuation_scale
+
+    def new_data(self) -> mujoco.MjData:
+        """A fresh ``MjData`` for this model."""
+        return mujoco.MjData(self.model)
+
+
+def build_walker_mjcf():
+    """Builds dm_control's arena with the V2020 walker attached, as the tracking task does.
+
+    Returns:
+        ``(arena, walker)``: the dm_control ``Floor`` arena (8 m x 8 m, the size
+        MoCapAct uses) and the attached ``CMUHumanoidPositionControlledV2020``.
+    """
+    from dm_control.locomotion.arenas import floors
+    from dm_control.locomotion.tasks.reference_pose import utils
+    from dm_control.locomotion.walkers import cmu_humanoid
+
+    arena = floors.Floor(size=(8.0, 8.0))
+    walker = utils.add_walker(cmu_humanoid.CMUHumanoidPositionControlledV2020, arena)
+    # Building this observable adds the four end-effector framepos sensors.
+    _ = walker.observables.end_effectors_pos
+    return arena, walker
+
+
+@functools.lru_cache(maxsize=1)
+def _compiled_xml() -> tuple[str, dict[str, bytes]]:
+    arena, _ = build_walker_mjcf()
+    arena.mjcf_model.option.timestep = PHYSICS_TIMESTEP
+    return arena.mjcf_model.to_xml_string(), dict(arena.mjcf_model.get_assets())
+
+
+def build_walker() -> WalkerModel:
+    """Compiles the walker model and collects its indices.
+
+    Compilation goes through dm_control's MJCF tree once per process (cached as
+    XML), so the model is identical to the one dm_control's
+    ``MultiClipMocapTracking`` simulates.
+
+    Returns:
+        A new :class:`WalkerModel` with its own ``MjModel``.
+    """
+    xml, assets = _compiled_xml()
+    model = mujoco.MjModel.from_xml_string(xml, assets)
+    return _index(model)
+
+
+def _index(model: mujoco.MjModel) -> WalkerModel:
+    from dm_control.locomotion.walkers import cmu_humanoid
+
+    def body(name: str) -> int:
+        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        if i < 0:
+            raise RuntimeError(f"walker model has no body {name!r}")
+        return i
+
+    def joint(name: str) -> int:
+        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"walker/{name}")
+        if i < 0:
+            raise RuntimeError(f"walker model has no joint {name!r}")
+        return i
+
+    def sensor_rows(name: str) -> np.ndarray:
+        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"walker/{name}")
+        if i < 0:
+            raise RuntimeError(f"walker model has no sensor {name!r}")
+        start = int(model.sensor_adr[i])
+        return np.arange(start, start + int(model.sensor_dim[i]))
+
+    mocap_names = tuple(cmu_humanoid._CMU_MOCAP_JOINTS)
+    mocap_joints = [joint(n) for n in mocap_names]
+    actuator_joints = [int(model.actuator_trnid[a, 0]) for a in range(model.nu)]
+    mocap_to_observable = np.array([mocap_joints.index(j) for j in actuator_joints])
+    observable_range = model.jnt_range[actuator_joints].copy()
+
+    walker_bodies = [b for b in range(model.nbody) if (model.body(b).name or "").startswith("walker/")]
+    attachment = body("walker/")
+    root = body("walker/root")
+    tracking = np.array([b for b in walker_bodies if b not in (attachment, root)])
+    end_effectors = np.array([body(f"walker/{n}") for n in ("rradius", "lradius", "rfoot", "lfoot")])
+    appendages = np.append(end_effectors, body("walker/head"))
+    feet = np.array([body(f"walker/{n}") for n in ("lfoot", "ltoes", "rfoot", "rtoes")])
+    walker_geoms = np.array([g for g in range(model.ngeom) if model.geom_bodyid[g] in walker_bodies])
+    foot_geoms = np.array([g for g in walker_geoms if model.geom_bodyid[g] in feet])
+    floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "groundplane")
+
+    touch_names = [
+        model.sensor(s).name.removeprefix("walker/")
+        for s in range(model.nsensor)
+        if model.sensor_type[s] == mujoco.mjtSensor.mjSENS_TOUCH
+    ]
+    torque_names = [
+        model.sensor(s).name.removeprefix("walker/")
+        for s in range(model.nsensor)
+        if model.sensor_type[s] == mujoco.mjtSensor.mjSENS_TORQUE
+    ]
+
+    def as_slice(rows: np.ndarray) -> slice:
+        return slice(int(rows[0]), int(rows[-1]) + 1)
+
+    lower, upper = observable_range[:, 0], observable_range[:, 1]
+    return WalkerModel(
+        model=model,
+        mocap_joint_names=mocap_names,
+        mocap_qpos=model.jnt_qposadr[mocap_joints].astype(np.intp),
+        mocap_dof=model.jnt_dofadr[mocap_joints].astype(np.intp),
+        observable_qpos=model.jnt_qposadr[actuator_joints].astype(np.intp),
+        observable_dof=model.jnt_dofadr[actuator_joints].astype(np.intp),
+        mocap_to_observable=mocap_to_observable,
+        joint_range=observable_range,
+        attachment_body=attachment,
+        root_body=root,
+        tracking_bodies=tracking,
+        end_effector_bodies=end_effectors,
+        appendage_bodies=appendages,
+        foot_bodies=feet,
+        walker_geoms=walker_geoms,
+        foot_geoms=foot_geoms,
+        floor_geom=floor,
+        sensor_velocimeter=as_slice(sensor_rows("sensor_root_veloc")),
+        sensor_gyro=as_slice(sensor_rows("sensor_root_gyro")),
+        sensor_accelerometer=as_slice(sensor_rows("sensor_root_accel")),
+        sensor_touch=np.concatenate([sensor_rows(n) for n in touch_names]),
+        sensor_torque=np.concatenate([sensor_rows(n) for n in torque_names]),
+        sensor_end_effectors=np.concatenate(
+            [sensor_rows(f"{n}_end_effector") for n in ("rradius", "lradius", "rfoot", "lfoot")]
+        ),
+        actuation_scale=upper - lower,
+        actuation_offset=upper + lower,
+    )

@@ -1,0 +1,39 @@
+"""Shared fixtures: one synthetic clip library per test session, in a private cache."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+
+@pytest.fixture(scope="session", autouse=True)
+def isolated_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Points the library's cache at a session folder (never the user's home)."""
+    cache = tmp_path_factory.mktemp("cache")
+    previous = {k: os.environ.get(k) for k in ("MOCAP_HIERARCHY_CACHE", "MOCAP_HIERARCHY_CMU_FILE")}
+    os.environ["MOCAP_HIERARCHY_CACHE"] = str(cache)
+    os.environ.pop("MOCAP_HIERARCHY_CMU_FILE", None)
+    yield cache
+    for key, value in previous.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
+
+
+@pytest.fixture(scope="session")
+def clip_library(isolated_cache: Path) -> Path:
+    """The full synthetic library, generated once (about 10 s)."""
+    from tasks.clips import ensure_synthetic_library
+
+    return ensure_synthetic_library(progress=False)
+
+
+@pytest.fixture(scope="session")
+def walker():
+    """A compiled walker model shared by tests that only read it."""
+    from tasks.walker import build_walker
+
+    return build_walker()

@@ -1,0 +1,89 @@
+import itertools
+from pathlib import Path
+
+import pytest
+
+from tasks.clips import (
+    ClipSourceError,
+    SnippetId,
+    find_cmu_file,
+    format_snippet_id,
+    parse_snippet_id,
+    resolve_clip_file,
+    snippets_of_clip,
+    split_snippets,
+)
+
+
+def test_split_matches_seed_example():
+    assert split_snippets(529) == [(0, 198), (165, 363), (330, 529)]
+
+
+@pytest.mark.parametrize("length", [1, 16, 210])
+def test_short_clips_stay_whole(length):
+    assert split_snippets(length) == [(0, length)]
+
+
+@pytest.mark.parametrize("length", [*range(211, 3200, 7), 6371])
+def test_split_properties(length):
+    snippets = split_snippets(length)
+    assert snippets[0][0] == 0 and snippets[-1][1] == length
+    sizes = [end - start for start, end in snippets]
+    assert max(sizes) <= 210
+    assert max(sizes) - min(sizes) <= 1  # uniform up to the rounding remainder
+    for (_, end), (next_start, _) in itertools.pairwise(snippets):
+        assert end - next_start == 33
+    # fewest snippets: one fewer could not respect the maximum length
+    fewer = len(snippets) - 1
+    if fewer >= 1:
+        assert (length + (fewer - 1) * 33) / fewer > 210
+
+
+def test_get_up_clips_are_never_cut():
+    from dm_control.locomotion.tasks.reference_pose import cmu_subsets
+
+    get_up = cmu_subsets.GET_UP.ids[0]
+    assert snippets_of_clip(get_up, 900) == [SnippetId(get_up, 0, 900)]
+    assert len(snippets_of_clip("CMU_009_12", 529)) == 3
+
+
+@pytest.mark.parametrize("text", ["CMU_006_12-151-336", "SYN_walk_slow-0-182", "SYN_stand"])
+def test_snippet_id_round_trip(text):
+    snippet = parse_snippet_id(text)
+    assert str(snippet) == text
+    assert parse_snippet_id(format_snippet_id(snippet.clip_id, snippet.start, snippet.end)) == snippet
+
+
+@pytest.mark.parametrize("text", ["CMU-006-12-1-2", "CMU_006_12-336-151", "CMU_006_12-a-3", "", "bad id-1-2", "A-1"])
+def test_bad_snippet_ids_are_refused(text):
+    with pytest.raises(ValueError, match=r"snippet id|clip id"):
+        parse_snippet_id(text)
+
+
+def test_frame_range_follows_dm_control_slicing():
+    # dm_control includes the end step when it lies inside the clip ...
+    assert SnippetId("C", 0, 198).frame_range(529) == (0, 199)
+    # ... and stops at the last frame when the end step is the clip length.
+    assert SnippetId("C", 330, 529).frame_range(529) == (330, 529)
+    assert SnippetId("C").frame_range(529) == (0, 529)
+
+
+def test_cmu_clip_without_file_says_where_to_put_it(monkeypatch, tmp_path):
+    monkeypatch.setattr(Path, "home", lambda: tmp_path)
+    with pytest.raises(ClipSourceError, match=r"\.dm_control.*MOCAP_HIERARCHY_CMU_FILE"):
+        resolve_clip_file(None, ["CMU_016_22"])
+
+
+def test_cmu_file_from_environment(monkeypatch, tmp_path):
+    fake = tmp_path / "cmu.h5"
+    fake.write_bytes(b"x")
+    monkeypatch.setenv("MOCAP_HIERARCHY_CMU_FILE", str(fake))
+    assert find_cmu_file() == fake
+    monkeypatch.setenv("MOCAP_HIERARCHY_CMU_FILE", str(tmp_path / "missing.h5"))
+    with pytest.raises(ClipSourceError, match=r"missing\.h5"):
+        find_cmu_file()
+
+
+def test_explicit_clip_file_must_exist(tmp_path):
+    with pytest.raises(ClipSourceError, match="does not exist"):
+        resolve_clip_file(tmp_path / "nope.h5", ["SYN_stand"])

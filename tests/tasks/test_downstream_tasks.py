@@ -1,0 +1,83 @@
+import itertools
+
+import numpy as np
+import pytest
+
+import tasks
+from tasks.clip_format import read_clip
+from tasks.go_to_target import GoToTargetConfig, GoToTargetEnv
+from tasks.velocity_control import VelocityControlConfig, VelocityControlEnv, reward
+
+
+def test_velocity_reward_formula():
+    assert reward([1.0, 0.0], [1.0, 0.0]) == pytest.approx(1.0)
+    assert reward([-2.0, 0.0], [2.0, 0.0]) == pytest.approx(0.0)  # opposite direction
+    assert reward([0.0, 1.75], [0.0, 1.0]) == pytest.approx(np.exp(-1.0))  # speed off by eta
+    # 90 degrees apart: ((1 + 0) / 2) ** 7
+    assert reward([0.0, 1.0], [1.0, 0.0]) == pytest.approx(0.5**7)
+    assert reward([0.0, 1.0], [1.0, 0.0], k=1.0) == pytest.approx(0.5)
+    assert reward([0.0, 0.0], [0.75, 0.0]) == pytest.approx(np.exp(-1.0))  # no direction when standing still
+    with pytest.raises(ValueError, match="2-vectors"):
+        reward([1.0, 0.0, 0.0], [1.0, 0.0])
+
+
+def test_tasks_start_from_the_library_standing_pose(clip_library):
+    stand = read_clip(clip_library, "SYN_stand")
+    for name in ("go_to_target", "velocity_control"):
+        env = tasks.make(name)
+        env.reset(seed=3)
+        walker = env.unwrapped.walker
+        np.testing.assert_allclose(env.unwrapped.data.qpos[walker.mocap_qpos], stand.joints[0])
+        assert env.unwrapped.data.qpos[2] == pytest.approx(stand.position[0, 2])
+
+
+def test_velocity_env_reward_and_command_schedule(clip_library):
+    env = VelocityControlEnv(VelocityControlConfig(command_seconds=0.09))  # a new command every 3 steps
+    env.reset(seed=0)
+    targets = [env.target_velocity]
+    for _ in range(6):
+        _, value, terminated, _, info = env.step(np.zeros(56))
+        targets.append(info["target_velocity"])
+        assert value == pytest.approx(reward(env.torso_velocity(), env.target_velocity, 0.75, 7.0))
+        assert not terminated
+    changes = [not np.allclose(a, b) for a, b in itertools.pairwise(targets)]
+    assert changes == [False, False, True, False, False, True]
+    assert all(np.linalg.norm(t) < 4.5 for t in targets)
+
+
+def test_velocity_env_ends_on_falls_and_time(clip_library):
+    env = VelocityControlEnv(VelocityControlConfig(max_steps=3))
+    env.reset(seed=0)
+    outcomes = [env.step(np.zeros(56))[2:4] for _ in range(3)]
+    assert outcomes[-1] == (False, True)  # truncated at max_steps while standing
+    env = VelocityControlEnv()
+    env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        _, _, terminated, _, info = env.step(rng.uniform(-1, 1, 56))
+        if terminated:
+            break
+    assert terminated and info["fell"]
+
+
+def test_go_to_target_rewards_and_moves_the_target(clip_library):
+    # A tiny arena keeps the target within 1 m: every step is rewarded.
+    env = GoToTargetEnv(GoToTargetConfig(arena_size=0.5))
+    env.reset(seed=0)
+    first = env.target
+    rewards = []
+    for _ in range(11):
+        _, value, *_ = env.step(np.zeros(56))
+        rewards.append(value)
+    assert rewards == [1.0] * 11
+    assert not np.allclose(env.target, first)  # moved after 10 rewarded steps
+
+
+def test_go_to_target_observation_is_egocentric(clip_library):
+    env = GoToTargetEnv(GoToTargetConfig(arena_size=20.0))
+    observation, _ = env.reset(seed=4)
+    data, root = env.data, env.walker.root_body
+    world = env.target - data.xpos[root]
+    expected = world @ data.xmat[root].reshape(3, 3)
+    np.testing.assert_allclose(observation["walker/target"], expected)
+    assert np.linalg.norm(observation["walker/target"]) == pytest.approx(np.linalg.norm(world))

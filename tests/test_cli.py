@@ -1,0 +1,50 @@
+import json
+
+import pytest
+
+from mocap_hierarchy.cli import main
+from tasks.clip_format import list_clips
+
+
+def test_split_prints_the_seed_snippets(capsys):
+    assert main(["clips", "split", "529"]) == 0
+    assert capsys.readouterr().out.split() == ["0-198", "165-363", "330-529"]
+
+
+def test_list_and_snippets_of_the_synthetic_library(clip_library, capsys):
+    assert main(["clips", "list", "--json"]) == 0
+    listing = json.loads(capsys.readouterr().out)
+    assert {row["clip"] for row in listing["clips"]} >= {"SYN_walk_slow", "SYN_stand"}
+    assert main(["clips", "snippets", "SYN_walk_slow"]) == 0
+    assert capsys.readouterr().out.split() == ["SYN_walk_slow-0-182", "SYN_walk_slow-149-331", "SYN_walk_slow-298-480"]
+
+
+def test_write_synthetic_subset(tmp_path, capsys):
+    out = tmp_path / "two.h5"
+    assert main(["clips", "write-synthetic", "--out", str(out), "--clip", "SYN_stand", "--clip", "SYN_wave"]) == 0
+    assert list_clips(out) == {"SYN_stand": 330, "SYN_wave": 360}
+
+
+def test_errors_exit_with_status_2(tmp_path, capsys):
+    assert main(["clips", "list", "--clips", str(tmp_path / "missing.h5")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_unknown_clip_in_snippets_command(clip_library):
+    with pytest.raises(SystemExit, match="no clip"):
+        main(["clips", "snippets", "SYN_nope"])
+
+
+def test_tasks_lists_the_registry(capsys):
+    assert main(["tasks"]) == 0
+    out = capsys.readouterr().out
+    assert "velocity_control" in out and "MocapHierarchy/GoToTarget-v0" in out
+
+
+def test_quickstart_writes_a_summary(clip_library, tmp_path, capsys):
+    assert main(["quickstart", "--out", str(tmp_path), "--episodes-per-snippet", "1"]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert len(summary["snippets"]) == 24
+    for row in summary["snippets"]:
+        assert 0.0 < row["normalized_length"] <= 1.0
+    assert summary["env_steps_per_second"] > 0
