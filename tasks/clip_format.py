@@ -194,7 +194,7 @@ def list_clips(path: str | os.PathLike) -> dict[str, int]:
             group = f[clip_id]
             if not isinstance(group, h5py.Group) or "num_steps" not in group.attrs:
                 raise ClipFileError(f"{path}: /{clip_id} is not a clip group (no num_steps attribute)")
-            out[clip_id] = int(group.attrs["num_steps"])
+            out[clip_id] = int(np.asarray(group.attrs["num_steps"]).item())
         return out
 
 
@@ -217,17 +217,21 @@ def read_clip_from(f: h5py.File, clip_id: str) -> Clip:
             f"{where} is not in the file ({len(f.keys())} clips; list them with `mocap-hierarchy clips list`)"
         )
     group = f[clip_id]
+    if not isinstance(group, h5py.Group):
+        raise ClipFileError(f"{where} is not an HDF5 group")
     for attr in ("num_steps", "dt"):
         if attr not in group.attrs:
             raise ClipFileError(f"{where} has no {attr!r} attribute")
-    num_steps = int(group.attrs["num_steps"])
-    dt = float(group.attrs["dt"])
+    num_steps = int(np.asarray(group.attrs["num_steps"]).item())
+    dt = float(np.asarray(group.attrs["dt"]).item())
     if num_steps < 1 or not np.isfinite(dt) or dt <= 0:
         raise ClipFileError(f"{where} has num_steps={num_steps}, dt={dt}: both must be positive")
     for required in ("props", "walkers/walker_0/scaling", "walkers/walker_0/markers"):
         if required not in group:
             raise ClipFileError(f"{where} lacks the group {required!r} that dm_control's loader requires")
     walker = group["walkers/walker_0"]
+    if not isinstance(walker, h5py.Group):
+        raise ClipFileError(f"{where}: walkers/walker_0 is not an HDF5 group")
     arrays = {}
     for name, size in FEATURE_SIZES.items():
         if name not in walker:

@@ -66,6 +66,8 @@ class SnippetId:
         """Half-open frame range ``[first, stop)`` this id covers in a clip of that length."""
         if self.start >= clip_length:
             raise ValueError(f"snippet {self} starts at frame {self.start} but {self.clip_id} has {clip_length} frames")
+        if self.end is not None and self.end > clip_length:
+            raise ValueError(f"snippet {self} ends at step {self.end} but {self.clip_id} has {clip_length} frames")
         stop = clip_length if self.end is None else min(self.end + 1, clip_length)
         return self.start, stop
 

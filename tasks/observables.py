@@ -149,7 +149,7 @@ class Proprioception:
         return {k: self._readers[k](data) for k in keys}
 
 
-def observation_sizes(keys: Sequence[str], ref_steps: Sequence[int] = ()) -> dict[str, int]:
+def observation_sizes(keys: Sequence[str], ref_steps: Sequence[int] | np.ndarray = ()) -> dict[str, int]:
     """Size of each observable; reference observables scale with ``len(ref_steps)``."""
     sizes = {}
     for key in keys:

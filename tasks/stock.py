@@ -48,7 +48,7 @@ def make_stock_tracking(config: TrackingConfig, clip_file: str | os.PathLike, se
         arena=floors.Floor(size=(8.0, 8.0)),
         ref_path=str(clip_file),
         ref_steps=tuple(config.ref_steps),
-        dataset=dataset,
+        dataset=dataset,  # pyright: ignore[reportArgumentType] (dm_control accepts a ClipCollection)
         termination_error_threshold=config.termination_threshold,
         min_steps=config.min_steps,
         reward_type="comic",

@@ -171,7 +171,10 @@ class ClipTrackingEnv(gym.Env):
         return references
 
     def _possible_starts(self, config: TrackingConfig) -> tuple[list[tuple[int, int]], np.ndarray]:
-        """(snippet index, first start, number of starts) and per-snippet probabilities."""
+        """``(snippet index, number of possible starts)`` per snippet, and the snippets' probabilities.
+
+        As in dm_control, every possible start carries its snippet's weight.
+        """
         weights = config.snippet_weights or (1.0,) * len(self.snippets)
         if len(weights) != len(self.snippets) or min(weights) < 0:
             raise ValueError("snippet_weights needs one non-negative weight per snippet")

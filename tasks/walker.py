@@ -163,8 +163,10 @@ def build_walker_mjcf():
 @functools.lru_cache(maxsize=1)
 def _compiled_xml() -> tuple[str, dict[str, bytes]]:
     arena, _ = build_walker_mjcf()
-    arena.mjcf_model.option.timestep = PHYSICS_TIMESTEP
-    return arena.mjcf_model.to_xml_string(), dict(arena.mjcf_model.get_assets())
+    root = arena.mjcf_model
+    assert root is not None
+    root.option.timestep = PHYSICS_TIMESTEP  # pyright: ignore (dm_control types elements loosely)
+    return root.to_xml_string(), dict(root.get_assets())
 
 
 def build_walker() -> WalkerModel:

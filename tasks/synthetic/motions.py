@@ -247,8 +247,8 @@ class Gait:
     stand_time: float = 0.45
     ramp_time: float = 1.6
 
-    def ramp(self, t: float | np.ndarray) -> float | np.ndarray:
-        """Fraction of cruise speed at time t."""
+    def ramp(self, t: float | np.ndarray) -> np.ndarray:
+        """Fraction of cruise speed at time(s) t (a 0-d array for a scalar t)."""
         p = np.clip((np.asarray(t) - self.stand_time) / self.ramp_time, 0.0, 1.0)
         return p**3 * (10.0 - 15.0 * p + 6.0 * p**2)
 

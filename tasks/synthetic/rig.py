@@ -39,7 +39,7 @@ def yaw_matrix(yaw: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def axis_angle_quat(axis: np.ndarray, angle: float) -> np.ndarray:
+def axis_angle_quat(axis: np.ndarray | list[float], angle: float) -> np.ndarray:
     """Unit quaternion (w, x, y, z) of a rotation by ``angle`` about ``axis``."""
     axis = np.asarray(axis, dtype=float)
     axis = axis / np.linalg.norm(axis)
@@ -58,10 +58,29 @@ def root_quat(yaw: float, pitch: float = 0.0, roll: float = 0.0) -> np.ndarray:
 
     Angles in radians; positive pitch leans forward, positive roll leans left.
     """
-    q = axis_angle_quat([0, 0, 1], yaw)
-    q = quat_multiply(q, axis_angle_quat([0, 1, 0], pitch))
-    q = quat_multiply(q, axis_angle_quat([1, 0, 0], -roll))
+    q = axis_angle_quat([0.0, 0.0, 1.0], yaw)
+    q = quat_multiply(q, axis_angle_quat([0.0, 1.0, 0.0], pitch))
+    q = quat_multiply(q, axis_angle_quat([1.0, 0.0, 0.0], -roll))
     return quat_multiply(q, BASE_ROOT_QUAT)
+
+
+@dataclass(frozen=True)
+class FootFrame:
+    """Geometry of one foot, in the foot body's frame.
+
+    Attributes:
+        local: Columns are the foot's forward, left and up axes.
+        ankle_height: Height of the foot origin above the floor when flat.
+        radius: Radius of the foot capsules.
+        centre: Centre of the capsule-axis endpoints.
+        up: Normal of the sole plane, pointing to the ankle.
+    """
+
+    local: np.ndarray
+    ankle_height: float
+    radius: float
+    centre: np.ndarray
+    up: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -176,7 +195,7 @@ class Rig:
         _, _, vt = np.linalg.svd(points_arr - points_arr.mean(axis=0))
         return points_arr, vt[2], radius
 
-    def _flat_foot_frame(self, side: str) -> dict[str, np.ndarray | float]:
+    def _flat_foot_frame(self, side: str) -> FootFrame:
         model = self.walker.model
         points, normal, radius = self._sole_geometry(side)
         toes = self.walker.body_id(f"{side}toes")
@@ -189,13 +208,13 @@ class Rig:
         left = np.cross(up, forward)
         local = np.stack([forward, left, up], axis=1)  # columns: foot-frame axes
         ankle_above_axes = float(np.dot(-centre, up))
-        return {
-            "local": local,
-            "ankle_height": radius + SOLE_CLEARANCE + ankle_above_axes,
-            "radius": radius,
-            "centre": centre,
-            "up": up,
-        }
+        return FootFrame(
+            local=local,
+            ankle_height=radius + SOLE_CLEARANCE + ankle_above_axes,
+            radius=radius,
+            centre=centre,
+            up=up,
+        )
 
     def _toe_pivot(self, side: str) -> np.ndarray:
         """Centre of the middle toe sphere in the foot frame, with flat toes."""
@@ -215,7 +234,7 @@ class Rig:
         geoms = [g for g in self.walker.foot_geoms if model.geom_bodyid[g] == toes]
         sphere = model.geom_pos[geoms[0]]
         radius = float(model.geom_size[geoms[0]][0])
-        up, centre = frame["up"], frame["centre"]
+        up, centre = frame.up, frame.centre
         joint = model.joint(f"walker/{side}toesrx").id
         low, high = model.jnt_range[joint]
         angles = np.linspace(low, high, 20001)
@@ -225,7 +244,7 @@ class Rig:
             [np.full_like(c, sphere[0]), c * sphere[1] - s * sphere[2], s * sphere[1] + c * sphere[2]], axis=1
         )
         height = (model.body_pos[toes] + rotated - centre) @ up  # sphere centre above axes plane
-        best = np.argmin(np.abs(height - (radius - frame["radius"])))
+        best = np.argmin(np.abs(height - (radius - frame.radius)))
         return float(angles[best])
 
     def _lower_arm(self, side: str, rest: np.ndarray) -> None:
@@ -255,11 +274,11 @@ class Rig:
     def foot_pose(self, side: str, spec: FootSpec) -> tuple[np.ndarray, np.ndarray]:
         """World position and rotation of a foot body for a flat foot at ``spec``."""
         frame = self._foot_frames[side]
-        rotation = yaw_matrix(spec.yaw) @ frame["local"].T
-        position = np.array([spec.x, spec.y, frame["ankle_height"] + spec.lift])
+        rotation = yaw_matrix(spec.yaw) @ frame.local.T
+        position = np.array([spec.x, spec.y, frame.ankle_height + spec.lift])
         if spec.pitch != 0.0:
             pivot = position + rotation @ self._toe_pivots[side]
-            lateral = rotation @ frame["local"][:, 1]
+            lateral = rotation @ frame.local[:, 1]
             quat = np.zeros(4)
             mujoco.mju_axisAngle2Quat(quat, lateral, spec.pitch)
             tilt = np.zeros(9)
@@ -271,7 +290,7 @@ class Rig:
 
     def sole_height(self, data: mujoco.MjData | None = None) -> dict[str, float]:
         """Lowest point of each foot's collision geoms above the floor (metres)."""
-        data = self.data if data is None else data
+        state = self.data if data is None else data
         model = self.walker.model
         heights: dict[str, float] = {}
         for side in "lr":
@@ -280,9 +299,9 @@ class Rig:
             for g in self.walker.foot_geoms:
                 if model.geom_bodyid[g] not in bodies:
                     continue
-                centre, radius = data.geom_xpos[g], model.geom_size[g][0]
+                centre, radius = state.geom_xpos[g], model.geom_size[g][0]
                 if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_CAPSULE:
-                    axis = data.geom_xmat[g].reshape(3, 3)[:, 2] * model.geom_size[g][1]
+                    axis = state.geom_xmat[g].reshape(3, 3)[:, 2] * model.geom_size[g][1]
                     z = min(centre[2] + axis[2], centre[2] - axis[2])
                 else:
                     z = centre[2]

@@ -66,6 +66,10 @@ def test_frame_range_follows_dm_control_slicing():
     # ... and stops at the last frame when the end step is the clip length.
     assert SnippetId("C", 330, 529).frame_range(529) == (330, 529)
     assert SnippetId("C").frame_range(529) == (0, 529)
+    with pytest.raises(ValueError, match="ends at step 600"):
+        SnippetId("C", 0, 600).frame_range(529)
+    with pytest.raises(ValueError, match="starts at frame 529"):
+        SnippetId("C", 529, 600).frame_range(529)
 
 
 def test_cmu_clip_without_file_says_where_to_put_it(monkeypatch, tmp_path):
@@ -87,3 +91,18 @@ def test_cmu_file_from_environment(monkeypatch, tmp_path):
 def test_explicit_clip_file_must_exist(tmp_path):
     with pytest.raises(ClipSourceError, match="does not exist"):
         resolve_clip_file(tmp_path / "nope.h5", ["SYN_stand"])
+
+
+def test_cmu_file_found_in_dm_control_cache_only_at_its_exact_size(monkeypatch, tmp_path):
+    from tasks.clips import CMU_2020_BYTES, CMU_2020_FILENAME
+
+    monkeypatch.setattr(Path, "home", lambda: tmp_path)
+    cached = tmp_path / ".dm_control" / CMU_2020_FILENAME
+    cached.parent.mkdir()
+    with cached.open("wb") as f:  # sparse: no disk space used
+        f.truncate(CMU_2020_BYTES - 1)
+    assert find_cmu_file() is None  # a partial download is not used
+    with cached.open("r+b") as f:
+        f.truncate(CMU_2020_BYTES)
+    assert find_cmu_file() == cached
+    assert resolve_clip_file(None, ["CMU_016_22"]) == cached
