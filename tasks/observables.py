@@ -31,6 +31,26 @@ PROPRIOCEPTION: dict[str, int] = {
 }
 """Walker observables available in every task, with their sizes."""
 
+EXTRA_PROPRIOCEPTION: dict[str, int] = {
+    "walker/gyro_anticlockwise_spin": 1,
+    "walker/gyro_backward_roll": 1,
+    "walker/gyro_rightward_roll": 1,
+    "walker/head_height": 1,
+    "walker/orientation": 9,
+    "walker/position": 3,
+    "walker/torso_xvel": 1,
+    "walker/torso_yvel": 1,
+    "walker/veloc_forward": 1,
+    "walker/veloc_strafe": 1,
+    "walker/veloc_up": 1,
+}
+"""dm_control's remaining walker observables (MoCapAct's ``log_all_proprios``):
+components of the gyro and velocimeter, the pelvis pose in the world, the head
+height and the pelvis subtree's horizontal velocity (needs ``mj_subtreeVel``)."""
+
+SUBTREE_VELOCITY_KEYS = frozenset({"walker/torso_xvel", "walker/torso_yvel"})
+"""Observables that read ``subtree_linvel`` (the environment must call ``mj_subtreeVel``)."""
+
 REFERENCE_PER_STEP: dict[str, int] = {
     "walker/reference_rel_joints": 56,
     "walker/reference_rel_bodies_pos_global": 93,
@@ -76,9 +96,18 @@ OBSERVABLE_SETS: dict[str, tuple[str, ...]] = {
     ),
     "gpt": (*DECODER, "walker/body_height"),
     "full": (*PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS),
+    "rollout": tuple(
+        sorted(
+            k
+            for k in (*PROPRIOCEPTION, *EXTRA_PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS)
+            if k != "walker/clip_id"
+        )
+    ),
 }
 """Named observable sets: the seed's expert (B.1.2), encoder and decoder (B.2),
-GPT (B.4), and ``full``: everything dm_control's tracking task observes."""
+GPT (B.4), ``full`` (everything dm_control's tracking task observes by
+default) and ``rollout`` (every float observable, sorted by key: the vector
+MoCapAct's released rollouts store, 2868 values with ``ref_steps`` 1..5)."""
 
 
 def resolve_observables(spec: str | Sequence[str], available: Sequence[str]) -> tuple[str, ...]:
@@ -120,6 +149,7 @@ class Proprioception:
     def __init__(self, walker: WalkerModel) -> None:
         self._walker = walker
         self._root = walker.root_body
+        self._head = walker.body_id("head")
         self._readers = {
             "walker/actuator_activation": lambda d: d.act.copy(),
             "walker/appendages_pos": self._appendages,
@@ -133,8 +163,19 @@ class Proprioception:
             "walker/sensors_touch": lambda d: (d.sensordata[walker.sensor_touch] > TOUCH_THRESHOLD).astype(np.float64),
             "walker/sensors_velocimeter": lambda d: d.sensordata[walker.sensor_velocimeter].copy(),
             "walker/world_zaxis": lambda d: d.xmat[self._root, 6:9].copy(),
+            "walker/gyro_anticlockwise_spin": lambda d: d.sensordata[walker.sensor_gyro][2:3].copy(),
+            "walker/gyro_backward_roll": lambda d: d.sensordata[walker.sensor_gyro][0:1].copy(),
+            "walker/gyro_rightward_roll": lambda d: d.sensordata[walker.sensor_gyro][1:2].copy(),
+            "walker/head_height": lambda d: d.xpos[self._head, 2:3].copy(),
+            "walker/orientation": lambda d: d.xmat[self._root].copy(),
+            "walker/position": lambda d: d.xpos[self._root].copy(),
+            "walker/torso_xvel": lambda d: d.subtree_linvel[self._root, 0:1].copy(),
+            "walker/torso_yvel": lambda d: d.subtree_linvel[self._root, 1:2].copy(),
+            "walker/veloc_forward": lambda d: d.sensordata[walker.sensor_velocimeter][0:1].copy(),
+            "walker/veloc_strafe": lambda d: d.sensordata[walker.sensor_velocimeter][1:2].copy(),
+            "walker/veloc_up": lambda d: d.sensordata[walker.sensor_velocimeter][2:3].copy(),
         }
-        assert set(self._readers) == set(PROPRIOCEPTION)
+        assert set(self._readers) == set(PROPRIOCEPTION) | set(EXTRA_PROPRIOCEPTION)
 
     def _appendages(self, data: mujoco.MjData) -> np.ndarray:
         relative = data.xpos[self._walker.appendage_bodies] - data.xpos[self._root]
@@ -155,6 +196,8 @@ def observation_sizes(keys: Sequence[str], ref_steps: Sequence[int] | np.ndarray
     for key in keys:
         if key in PROPRIOCEPTION:
             sizes[key] = PROPRIOCEPTION[key]
+        elif key in EXTRA_PROPRIOCEPTION:
+            sizes[key] = EXTRA_PROPRIOCEPTION[key]
         elif key in REFERENCE_PER_STEP:
             sizes[key] = REFERENCE_PER_STEP[key] * len(ref_steps)
         elif key in TRACKING_EXTRAS:

@@ -16,7 +16,13 @@ from tasks.tracking import TrackingConfig
 from tasks.walker import PHYSICS_TIMESTEP
 
 
-def make_stock_tracking(config: TrackingConfig, clip_file: str | os.PathLike, seed: int = 0, recompile: bool = True):
+def make_stock_tracking(
+    config: TrackingConfig,
+    clip_file: str | os.PathLike,
+    seed: int = 0,
+    recompile: bool = True,
+    all_proprioception: bool = False,
+):
     """Builds ``composer.Environment(MultiClipMocapTracking(...))`` for a config.
 
     Args:
@@ -24,6 +30,8 @@ def make_stock_tracking(config: TrackingConfig, clip_file: str | os.PathLike, se
         clip_file: The clip file both environments read.
         seed: Seed of dm_control's random state.
         recompile: dm_control's ``recompile_mjcf_every_episode`` (its default: True).
+        all_proprioception: Enable every walker observable but the cameras and
+            ``prev_action`` (MoCapAct's ``log_all_proprios``).
 
     Returns:
         The dm_control environment; ``env.task`` is the ``MultiClipMocapTracking``.
@@ -55,6 +63,11 @@ def make_stock_tracking(config: TrackingConfig, clip_file: str | os.PathLike, se
         physics_timestep=PHYSICS_TIMESTEP,
         always_init_at_clip_start=config.init == "start",
     )
+    if all_proprioception:
+        observables = task._walker.observables
+        observables.enable_all()
+        for name in ("prev_action", "egocentric_camera", "body_camera"):
+            getattr(observables, name).enabled = False
     return composer.Environment(
         task=task, random_state=np.random.RandomState(seed), recompile_mjcf_every_episode=recompile
     )

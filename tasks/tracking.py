@@ -36,8 +36,10 @@ from tasks.clip_format import ClipFileError, open_clip_file, read_clip_from
 from tasks.clips import SnippetId, parse_snippet_id, resolve_clip_file
 from tasks.geometry import quat_diff, quat_to_axisangle
 from tasks.observables import (
+    EXTRA_PROPRIOCEPTION,
     PROPRIOCEPTION,
     REFERENCE_PER_STEP,
+    SUBTREE_VELOCITY_KEYS,
     TRACKING_EXTRAS,
     Proprioception,
     observation_sizes,
@@ -73,6 +75,11 @@ class TrackingConfig:
         action_noise: Standard deviation of Gaussian noise added to actions
             (MoCapAct's experts: 0.1); noisy actions are clipped to [-1, 1].
         snippet_weights: Optional per-snippet weights (default 1 each).
+        residual_actions: Interpret actions as offsets from the reference's
+            next pose: the humanoid receives ``clip(action + pose_to_actuation(
+            reference joints at t+1), -1, 1)``. A zero action then plays the
+            reference back. ``info["action"]`` always holds the absolute action
+            the humanoid received.
     """
 
     snippets: tuple[str, ...] = ("SYN_walk_slow",)
@@ -84,6 +91,7 @@ class TrackingConfig:
     termination_threshold: float = 0.3
     action_noise: float = 0.0
     snippet_weights: tuple[float, ...] | None = field(default=None)
+    residual_actions: bool = False
 
 
 class ClipMismatchError(ValueError):
@@ -119,10 +127,11 @@ class ClipTrackingEnv(gym.Env):
         self._proprioception = Proprioception(self.walker)
         self._ref_steps = np.sort(np.asarray(config.ref_steps, dtype=np.int64))
 
-        available = (*PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS)
+        available = (*PROPRIOCEPTION, *EXTRA_PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS)
         self.observation_keys = resolve_observables(config.observables, available)
         self._key_set = frozenset(self.observation_keys)
-        self._proprio_keys = [k for k in self.observation_keys if k in PROPRIOCEPTION]
+        self._proprio_keys = [k for k in self.observation_keys if k in PROPRIOCEPTION or k in EXTRA_PROPRIOCEPTION]
+        self._needs_subtree_velocity = bool(self._key_set & SUBTREE_VELOCITY_KEYS)
         sizes = observation_sizes(self.observation_keys, self._ref_steps)
         self.observation_space = gym.spaces.Dict(
             {k: gym.spaces.Box(-np.inf, np.inf, (n,), np.float64) for k, n in sizes.items()}
@@ -219,6 +228,9 @@ class ClipTrackingEnv(gym.Env):
         mujoco.mj_resetData(model, data)
         reference.set_state(data, time_step)
         forward_without_actuation(model, data)
+        # No mj_subtreeVel here: dm_control only refreshes subtree velocities after
+        # physics steps, so its first observation of walker/torso_{x,y}vel is the
+        # zero left by mj_resetData. We report the same.
         self._reference, self._snippet_index = reference, index
         self._time_step = self._time_step_at_reset = time_step
         self._state = WalkerState.read(self.walker, data)
@@ -273,9 +285,13 @@ class ClipTrackingEnv(gym.Env):
         if not self._episode_active:
             raise RuntimeError("the episode has ended (or never started): call reset() first")
         action = checked_action(action, self.walker.num_joints)
+        if self.config.residual_actions:
+            action = np.clip(action + self.reference_actuation(), -1.0, 1.0)
         if self.config.action_noise > 0:
             action = np.clip(action + self.np_random.normal(0.0, self.config.action_noise, action.shape), -1.0, 1.0)
         diverged = control_step(self._model, self._data, action, acceleration_current=self._episode_length > 0)
+        if self._needs_subtree_velocity:
+            mujoco.mj_subtreeVel(self._model, self._data)
 
         self._time_step += 1
         self._previous, self._state = self._state, WalkerState.read(self.walker, self._data)
@@ -300,13 +316,24 @@ class ClipTrackingEnv(gym.Env):
         self._episode_return += reward
         self._episode_length += 1
         observation = self._observation()
-        info = {"reward_terms": terms, "termination_error": error, "time_step": reference.first_frame + t}
+        info = {
+            "reward_terms": terms,
+            "termination_error": error,
+            "time_step": reference.first_frame + t,
+            "action": action,
+        }
         if diverged:
             info["physics_diverged"] = True
         if terminated or truncated:
             self._episode_active = False
             info.update(self._episode_summary())
         return observation, reward, terminated, truncated, info
+
+    def reference_actuation(self) -> np.ndarray:
+        """Actions whose position targets are the reference's next pose (the playback controller)."""
+        reference = self._reference
+        next_frame = min(self._time_step + 1, reference.num_frames - 1)
+        return np.clip(self.walker.pose_to_actuation(reference.joints[next_frame]), -1.0, 1.0)
 
     def _error(self, state: WalkerState) -> float:
         t = self._time_step
@@ -378,6 +405,4 @@ def reference_action(env: ClipTrackingEnv) -> np.ndarray:
     eventually falls): useful to check a clip is trackable and to time the
     environment with realistic episode lengths.
     """
-    reference = env.reference
-    next_frame = min(env.time_step + 1, reference.num_frames - 1)
-    return np.clip(env.walker.pose_to_actuation(reference.joints[next_frame]), -1.0, 1.0)
+    return np.zeros(env.walker.num_joints) if env.config.residual_actions else env.reference_actuation()

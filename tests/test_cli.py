@@ -41,10 +41,16 @@ def test_tasks_lists_the_registry(capsys):
     assert "velocity_control" in out and "MocapHierarchy/GoToTarget-v0" in out
 
 
-def test_quickstart_writes_a_summary(clip_library, tmp_path, capsys):
-    assert main(["quickstart", "--out", str(tmp_path), "--episodes-per-snippet", "1"]) == 0
+def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys):
+    args = ["quickstart", "--out", str(tmp_path), "--episodes-per-snippet", "1", "--expert-steps", "2048"]
+    args += ["--expert-snippets", "SYN_stand-0-181", "--rollouts-per-snippet", "1", "--workers", "1"]
+    assert main(args) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert len(summary["snippets"]) == 24
-    for row in summary["snippets"]:
+    assert len(summary["playback"]) == 24
+    for row in summary["playback"]:
         assert 0.0 < row["normalized_length"] <= 1.0
     assert summary["env_steps_per_second"] > 0
+    assert summary["experts"][0]["snippet"] == "SYN_stand-0-181" and summary["experts"][0]["status"] == "ok"
+    assert summary["dataset"]["files"] == 1 and summary["dataset"]["episodes"] == 2
+    assert main(args) == 0  # a second run resumes: the expert is skipped, the dataset file kept
+    assert "0 ok, 1 skipped, 0 failed" in capsys.readouterr().out

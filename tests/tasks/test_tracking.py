@@ -122,6 +122,27 @@ def test_reward_terms_sum_to_the_reward(env):
     }
 
 
+def test_residual_actions_offset_the_reference_pose(clip_library, walker):
+    def first_steps(residual, action):
+        env = ClipTrackingEnv(
+            TrackingConfig(snippets=("SYN_wave",), clips=str(clip_library), init="start", residual_actions=residual),
+            walker=walker,
+        )
+        env.reset(seed=0)
+        expected = env.reference_actuation()
+        observation, _, _, _, info = env.step(action)
+        return observation["walker/joints_pos"], info["action"], expected
+
+    # a zero residual is the playback controller
+    residual_obs, applied, expected = first_steps(True, np.zeros(56))
+    np.testing.assert_allclose(applied, expected)
+    absolute_obs, _, _ = first_steps(False, expected)
+    np.testing.assert_array_equal(residual_obs, absolute_obs)
+    # offsets add to the reference actuation and the sum is clipped to [-1, 1]
+    _, applied, expected = first_steps(True, np.full(56, 0.5))
+    np.testing.assert_allclose(applied, np.clip(expected + 0.5, -1, 1))
+
+
 def test_action_noise_is_seeded(clip_library, walker):
     def rollout(noise, seed):
         env = ClipTrackingEnv(

@@ -9,11 +9,14 @@ from tasks.tracking import ClipTrackingEnv, TrackingConfig, reference_action
 SNIPPETS = ("SYN_walk_slow-0-200", "SYN_squat", "SYN_wave-100-300", "SYN_turn_left-149-331")
 
 
-@pytest.mark.parametrize(("init", "seed"), [("random", 3), ("start", 5)])
-def test_observations_rewards_and_ends_match_dm_control(clip_library, init, seed):
-    config = TrackingConfig(snippets=SNIPPETS, clips=str(clip_library), init=init)
+@pytest.mark.parametrize(
+    ("init", "seed", "observables", "keys"),
+    [("random", 3, "full", 25), ("start", 5, "full", 25), ("random", 7, "rollout", 35)],
+)
+def test_observations_rewards_and_ends_match_dm_control(clip_library, init, seed, observables, keys):
+    config = TrackingConfig(snippets=SNIPPETS, clips=str(clip_library), init=init, observables=observables)
     ours = ClipTrackingEnv(config)
-    stock = make_stock_tracking(config, clip_library, seed=seed)
+    stock = make_stock_tracking(config, clip_library, seed=seed, all_proprioception=observables == "rollout")
     rng = np.random.default_rng(seed)
     worst: dict[str, float] = {}
     steps = resets = 0
@@ -43,5 +46,5 @@ def test_observations_rewards_and_ends_match_dm_control(clip_library, init, seed
             assert done == timestep.last()
             if done:
                 assert terminated == (timestep.discount == 0.0)
-    assert len(worst) == 25  # every non-empty observable of dm_control's task
+    assert len(worst) == keys  # every non-empty float observable of dm_control's task
     assert max(worst.values()) < 1e-6, sorted(worst.items(), key=lambda item: -item[1])[:3]

@@ -1,0 +1,171 @@
+"""The expert-rollout dataset format (seed A.2): names, layout and validation.
+
+One HDF5 file per clip, named ``<clip_id>.hdf5``; the writer and the reader
+both import this module, so the layout exists in one place::
+
+    /                                   attrs: mocap_hierarchy_rollouts (schema version), clip_id
+    n_rsi_rollouts, n_start_rollouts    () int64: R and S
+    ref_steps                           (k,) int64: reference look-ahead (1..5)
+    observable_indices/walker/<name>    (size,) int64: columns of the observation vector
+    stats/proprio_mean, proprio_var     (D,)   over every observation row of the file
+    stats/act_mean, act_var             (56,)  over sampled actions
+    stats/mean_act_mean, mean_act_var   (56,)  over mean actions
+    stats/count                         ()     number of observation rows
+    <snippet id>/                       e.g. SYN_walk_slow-0-182
+        early_termination               (S+R,) bool: the episode failed (error > 0.3)
+        start_metrics/, rsi_metrics/    episode_returns, episode_lengths,
+                                        norm_episode_returns, norm_episode_lengths: (S,) and (R,)
+        <i>/                            episodes 0..S-1 start at the snippet start, S..S+R-1 at random frames
+            observations/proprioceptive (T+1, D) float32
+            actions, mean_actions       (T, 56) float32: absolute joint targets the humanoid received
+            log_probs                   (T,) float32 (ours; MoCapAct's files lack it)
+            rewards, values, advantages (T,) float32 (GAE with the expert's gamma and lambda)
+
+Group and dataset names are MoCapAct's, so its released files read with the
+same code; they lack the schema attribute and ``log_probs``.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import h5py
+import numpy as np
+
+SCHEMA_ATTRIBUTE = "mocap_hierarchy_rollouts"
+SCHEMA_VERSION = 1
+FILE_SUFFIX = ".hdf5"
+
+N_RSI = "n_rsi_rollouts"
+N_START = "n_start_rollouts"
+REF_STEPS = "ref_steps"
+OBSERVABLE_INDICES = "observable_indices"
+STATS = "stats"
+STAT_NAMES = ("proprio_mean", "proprio_var", "act_mean", "act_var", "mean_act_mean", "mean_act_var", "count")
+EARLY_TERMINATION = "early_termination"
+START_METRICS = "start_metrics"
+RSI_METRICS = "rsi_metrics"
+METRIC_NAMES = ("episode_returns", "episode_lengths", "norm_episode_returns", "norm_episode_lengths")
+OBSERVATIONS = "observations/proprioceptive"
+ACTIONS = "actions"
+MEAN_ACTIONS = "mean_actions"
+LOG_PROBS = "log_probs"
+REWARDS = "rewards"
+VALUES = "values"
+ADVANTAGES = "advantages"
+EPISODE_DATASETS = (OBSERVATIONS, ACTIONS, MEAN_ACTIONS, REWARDS, VALUES, ADVANTAGES)
+"""Per-episode datasets every file (ours or MoCapAct's) has."""
+
+SNIPPET_GROUP = re.compile(r"^[A-Za-z0-9_]+-\d+-\d+$")
+
+
+class DatasetError(ValueError):
+    """A rollout file is missing, corrupt, from another schema, or asked for something it lacks."""
+
+
+@dataclass(frozen=True)
+class FileLayout:
+    """What validation found in one file.
+
+    Attributes:
+        version: Our schema version, or 0 for a MoCapAct file.
+        snippets: Snippet group names.
+        n_start: S.
+        n_rsi: R.
+        ref_steps: Reference look-ahead.
+        observable_indices: Column indices of each observable.
+        has_log_probs: Whether episodes store ``log_probs``.
+    """
+
+    version: int
+    snippets: tuple[str, ...]
+    n_start: int
+    n_rsi: int
+    ref_steps: tuple[int, ...]
+    observable_indices: dict[str, np.ndarray]
+    has_log_probs: bool
+
+
+def group_at(node: h5py.Group, path: str, where: str) -> h5py.Group:
+    """The HDF5 group at ``path``, or a :class:`DatasetError` naming file and path."""
+    item = node.get(path)
+    if not isinstance(item, h5py.Group):
+        raise DatasetError(f"{where}: /{path} is missing or not a group (the file is incomplete or not a rollout file)")
+    return item
+
+
+def dataset_at(node: h5py.Group, path: str, where: str) -> h5py.Dataset:
+    """The HDF5 dataset at ``path``, or a :class:`DatasetError` naming file and path."""
+    item = node.get(path)
+    if not isinstance(item, h5py.Dataset):
+        raise DatasetError(
+            f"{where}: /{path} is missing or not a dataset (the file is incomplete or not a rollout file)"
+        )
+    return item
+
+
+def observable_index_path(key: str) -> str:
+    """HDF5 path of an observable's column indices (``walker/x`` -> ``observable_indices/walker/x``)."""
+    return f"{OBSERVABLE_INDICES}/{key}"
+
+
+def read_observable_indices(f: h5py.File) -> dict[str, np.ndarray]:
+    """``{"walker/name": indices}`` from a file."""
+    out: dict[str, np.ndarray] = {}
+
+    def visit(name: str, item) -> None:
+        if isinstance(item, h5py.Dataset):
+            out[name] = np.asarray(item[...], dtype=np.int64)
+
+    group_at(f, OBSERVABLE_INDICES, str(f.filename)).visititems(visit)
+    return out
+
+
+def validate(f: h5py.File, where: str) -> FileLayout:
+    """Checks a rollout file's layout and returns what it holds.
+
+    Raises:
+        DatasetError: naming the file, the group and what to do.
+    """
+    version = int(f.attrs.get(SCHEMA_ATTRIBUTE, 0))
+    if version > SCHEMA_VERSION:
+        raise DatasetError(
+            f"{where} uses rollout schema version {version}; this library reads up to {SCHEMA_VERSION}: "
+            "upgrade mocap-hierarchy"
+        )
+    for name in (N_RSI, N_START, REF_STEPS, OBSERVABLE_INDICES):
+        if name not in f:
+            raise DatasetError(
+                f"{where} lacks /{name}: not an expert-rollout file (seed A.2 layout); write one with "
+                "`mocap-hierarchy rollout`"
+            )
+    snippets = tuple(sorted(str(k) for k in f if SNIPPET_GROUP.match(str(k))))
+    if not snippets:
+        raise DatasetError(f"{where} holds no snippet group (CLIP-START-END)")
+    n_start, n_rsi = int(dataset_at(f, N_START, where)[()]), int(dataset_at(f, N_RSI, where)[()])
+    log_probs = True
+    for snippet in snippets:
+        group = group_at(f, snippet, where)
+        for name in (EARLY_TERMINATION, START_METRICS, RSI_METRICS):
+            if name not in group:
+                raise DatasetError(f"{where}: /{snippet} lacks {name}; the file is incomplete, write it again")
+        first = group_at(group, "0", f"{where}: /{snippet}")
+        for name in EPISODE_DATASETS:
+            if name not in first:
+                raise DatasetError(f"{where}: /{snippet}/0 lacks {name}")
+        log_probs = log_probs and LOG_PROBS in first
+    indices = read_observable_indices(f)
+    width = int(dataset_at(f, f"{snippets[0]}/0/{OBSERVATIONS}", where).shape[1])
+    largest = max(int(v.max()) for v in indices.values())
+    if largest >= width:
+        raise DatasetError(f"{where}: observable_indices reach column {largest} but observations have {width}")
+    return FileLayout(
+        version=version,
+        snippets=snippets,
+        n_start=n_start,
+        n_rsi=n_rsi,
+        ref_steps=tuple(int(s) for s in dataset_at(f, REF_STEPS, where)[...]),
+        observable_indices=indices,
+        has_log_probs=log_probs,
+    )

@@ -1,0 +1,116 @@
+"""Configuration of snippet-expert training: the seed's Table 1 and B.1.2 as defaults."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+
+@dataclass(frozen=True)
+class ExpertConfig:
+    """How to train one clip-snippet expert with PPO (defaults: seed Table 1, B.1.2).
+
+    Attributes:
+        total_steps: Environment steps budget.
+        steps_per_update: Environment steps collected per PPO update (all envs together).
+        epochs: PPO epochs per update.
+        minibatch_size: PPO minibatch size.
+        clip_range: PPO clipping parameter.
+        gae_lambda: GAE parameter.
+        gamma: Discount factor.
+        max_grad_norm: Gradient norm clipping value.
+        learning_rates: Adam step sizes for the first, second and last third of the budget.
+        hidden_layers: Hidden layer sizes of the policy and of the value network.
+        action_std: Fixed standard deviation of the Gaussian policy (the experts' action noise).
+        residual_actions: Policy outputs offsets from the reference's next pose instead of
+            absolute joint targets (not in the seed; see the README for why it exists).
+        termination_threshold: Tracking error that ends an episode.
+        train_min_steps: Random training starts exclude the last ``train_min_steps + 1`` frames.
+        eval_every: Evaluate every this many environment steps.
+        eval_episodes: Episodes per evaluation.
+        eval_min_steps: Evaluation starts exclude the last ``eval_min_steps + 1`` frames (30).
+        eval_action_noise: Action noise during evaluation (deterministic policy plus this noise).
+        early_stop_length: Early stopping needs the normalised episode length to reach this.
+        early_stop_improvement: Relative improvement of the normalised reward that counts.
+        early_stop_patience: Stop after this many steps without such an improvement.
+        checkpoint_every: Save a resumable checkpoint every this many steps.
+        n_envs: Parallel environments; 0 means one per CPU core.
+        subprocess_envs: Run environments in worker processes (else all in this process).
+        torch_threads: Torch CPU threads; 0 keeps torch's default.
+        device: Torch device for the networks (``auto``, ``cpu``, ``cuda``).
+        seed: Random seed.
+    """
+
+    total_steps: int = 150_000_000
+    steps_per_update: int = 8192
+    epochs: int = 10
+    minibatch_size: int = 512
+    clip_range: float = 0.25
+    gae_lambda: float = 0.95
+    gamma: float = 0.95
+    max_grad_norm: float = 1.0
+    learning_rates: tuple[float, ...] = (1e-5, 6e-6, 3e-6)
+    hidden_layers: tuple[int, ...] = (1024, 1024, 1024)
+    action_std: float = 0.1
+    residual_actions: bool = False
+    termination_threshold: float = 0.3
+    train_min_steps: int = 9
+    eval_every: int = 1_000_000
+    eval_episodes: int = 1000
+    eval_min_steps: int = 29
+    eval_action_noise: float = 0.1
+    early_stop_length: float = 0.98
+    early_stop_improvement: float = 0.01
+    early_stop_patience: int = 10_000_000
+    checkpoint_every: int = 1_000_000
+    n_envs: int = 0
+    subprocess_envs: bool = True
+    torch_threads: int = 0
+    device: str = "auto"
+    seed: int = 0
+
+    def resolved_envs(self) -> int:
+        """Number of environments to run (``n_envs``, or one per CPU core)."""
+        return self.n_envs if self.n_envs > 0 else max(1, os.cpu_count() or 1)
+
+    def validate(self) -> None:
+        """Raises ValueError with the offending field if the settings cannot work."""
+        if self.total_steps < 1 or self.steps_per_update < 1:
+            raise ValueError("total_steps and steps_per_update must be positive")
+        if self.steps_per_update % self.resolved_envs():
+            raise ValueError(
+                f"steps_per_update ({self.steps_per_update}) must be a multiple of the number of "
+                f"environments ({self.resolved_envs()})"
+            )
+        if self.minibatch_size > self.steps_per_update:
+            raise ValueError("minibatch_size cannot exceed steps_per_update")
+        if not self.learning_rates or min(self.learning_rates) <= 0:
+            raise ValueError("learning_rates must be positive")
+        if self.action_std <= 0:
+            raise ValueError("action_std must be positive")
+        if self.eval_every < 1 or self.eval_episodes < 1 or self.checkpoint_every < 1:
+            raise ValueError("eval_every, eval_episodes and checkpoint_every must be positive")
+
+
+def expert_config_from_json(values: dict[str, Any]) -> ExpertConfig:
+    """An :class:`ExpertConfig` from its JSON form (lists back to tuples)."""
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in values.items()}
+    return ExpertConfig(**fields)
+
+
+class PiecewiseLearningRate:
+    """Learning rate constant over equal parts of the budget (SB3 schedule).
+
+    SB3 calls it with the remaining fraction of training (1 at the start, 0 at
+    the end); with three rates it gives the seed's 1e-5 / 6e-6 / 3e-6 thirds.
+    """
+
+    def __init__(self, rates: tuple[float, ...]) -> None:
+        self.rates = tuple(float(r) for r in rates)
+
+    def __call__(self, progress_remaining: float) -> float:
+        """The rate for SB3's remaining fraction of training."""
+        done = min(max(1.0 - progress_remaining, 0.0), 1.0)
+        part = min(int(done * len(self.rates)), len(self.rates) - 1)
+        return self.rates[part]

@@ -1,0 +1,316 @@
+"""Training windows from the rollout dataset, with the seed's data weighting (B.2).
+
+A window is T consecutive steps of one episode: observations (grouped as the
+caller asks, e.g. decoder state and encoder reference), the expert's mean (or
+sampled) actions, and a weight per step:
+
+* ``bc``: 1 (plain behaviour cloning);
+* ``cwr``: clip-weighted, ``exp(R_snippet / T)`` with R the snippet's mean
+  normalised return, temperature 0.2;
+* ``awr``: advantage-weighted, ``exp(A / T)``, temperature 8;
+* ``rwr``: reward-weighted, ``exp((V + A) / T)`` (the Q estimate), temperature 4.
+
+Weights are rescaled so their mean under the sampling distribution is exactly
+1 (the KL term keeps its relative weight). Windows of shorter snippets are
+drawn more often, in proportion to ``210 / snippet length``, so every clip's
+data is used evenly.
+
+Two access paths, same values: everything needed is gathered into memory
+(default when it fits) and batches are one fancy-indexing operation; or
+windows are read from the open HDF5 files. ``WindowDataset`` is a map-style
+PyTorch dataset, so a ``DataLoader`` with a ``WeightedRandomSampler`` and any
+number of workers works as usual; :meth:`WindowDataset.batches` is the fast
+path for training (whole batches gathered in a background thread).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, Dataset, WeightedRandomSampler
+
+from distill import dataset_schema as schema
+from distill.dataset import RolloutDataset
+
+DEFAULT_TEMPERATURES: dict[str, float | None] = {"bc": None, "cwr": 0.2, "awr": 8.0, "rwr": 4.0}
+"""The seed's Table 2 temperatures per weighting scheme."""
+
+
+@dataclass(frozen=True)
+class SamplerConfig:
+    """How windows are cut and weighted.
+
+    Attributes:
+        window: Steps per window (30 for the multi-clip policy, 32 for the GPT).
+        weighting: ``bc``, ``cwr``, ``awr`` or ``rwr``.
+        temperature: Weighting temperature; None takes the seed's for the scheme.
+        actions: ``mean`` (the experts' mean actions, the seed's targets) or ``sampled``.
+        upsample_short_snippets: Draw windows in proportion to ``max_snippet_length / length``.
+        max_snippet_length: The longest snippet (210).
+        max_weight: Weights are clipped to this after rescaling.
+        normalize_observations: Standardise observations with the dataset statistics.
+        in_memory: Gather the selected data into memory (None: when it needs less than ``memory_limit_gb``).
+        memory_limit_gb: Size limit of the automatic in-memory choice.
+    """
+
+    window: int = 30
+    weighting: str = "bc"
+    temperature: float | None = None
+    actions: str = "mean"
+    upsample_short_snippets: bool = True
+    max_snippet_length: int = 210
+    max_weight: float = math.inf
+    normalize_observations: bool = False
+    in_memory: bool | None = None
+    memory_limit_gb: float = 8.0
+
+
+class WindowDataset(Dataset):
+    """Windows of a :class:`RolloutDataset` (see the module docstring).
+
+    Args:
+        dataset: The rollouts.
+        groups: Output name -> observable keys, e.g. ``{"state": DECODER, "reference": (...)}``.
+        config: Window and weighting settings.
+    """
+
+    def __init__(self, dataset: RolloutDataset, groups: dict[str, Sequence[str]], config: SamplerConfig) -> None:
+        if config.weighting not in DEFAULT_TEMPERATURES:
+            raise ValueError(f"unknown weighting {config.weighting!r}; choose one of {', '.join(DEFAULT_TEMPERATURES)}")
+        if config.actions not in ("mean", "sampled"):
+            raise ValueError("actions must be 'mean' or 'sampled'")
+        if config.window < 1:
+            raise ValueError("window must be at least 1")
+        reserved = {"actions", "weights"} & set(groups)
+        if reserved:
+            raise ValueError(f"group names {sorted(reserved)} are reserved")
+        self.dataset = dataset
+        self.config = config
+        self.groups = {name: tuple(keys) for name, keys in groups.items()}
+        self.columns = {name: dataset.columns(keys) for name, keys in self.groups.items()}
+        self._action_name = schema.MEAN_ACTIONS if config.actions == "mean" else schema.ACTIONS
+        self.episodes = [e for e in dataset.episodes if e.length >= config.window]
+        if not self.episodes:
+            raise schema.DatasetError(f"no episode has {config.window} steps; use a shorter window")
+        lengths = np.array([e.length for e in self.episodes])
+        counts = lengths - config.window + 1
+        self._window_episode = np.repeat(np.arange(len(self.episodes)), counts).astype(np.int64)
+        self._window_start = np.concatenate([np.arange(c) for c in counts]).astype(np.int64)
+        self._act_offset = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
+        self._obs_offset = np.concatenate([[0], np.cumsum(lengths + 1)[:-1]]).astype(np.int64)
+        self._probabilities = self._window_probabilities(counts)
+        self._cdf = np.cumsum(self._probabilities)
+        self._handles: dict[int, tuple] = {}
+        self._handles_pid = -1
+        self.weights = self._step_weights(lengths)
+        self._mean, self._std = self._normalisation()
+        size = sum(len(c) for c in self.columns.values()) * (lengths + 1).sum() * 4 + lengths.sum() * 56 * 4
+        in_memory = config.in_memory if config.in_memory is not None else size < config.memory_limit_gb * 2**30
+        self._memory = self._gather() if in_memory else None
+
+    # Setup ---------------------------------------------------------------------------
+
+    def _window_probabilities(self, counts: np.ndarray) -> np.ndarray:
+        factor = np.ones(len(self.episodes))
+        if self.config.upsample_short_snippets:
+            lengths = np.array([_snippet_length(e.snippet) for e in self.episodes], dtype=np.float64)
+            factor = self.config.max_snippet_length / lengths
+        per_window = np.repeat(factor, counts)
+        return per_window / per_window.sum()
+
+    def _step_weights(self, lengths: np.ndarray) -> np.ndarray:
+        """Per-action-step weights, rescaled to mean 1 under the window distribution."""
+        scheme = self.config.weighting
+        temperature = self.config.temperature or DEFAULT_TEMPERATURES[scheme]
+        if scheme == "bc" or temperature is None:
+            return np.ones(int(lengths.sum()), dtype=np.float32)
+        if scheme == "cwr":
+            returns = self.dataset.snippet_returns()
+            energy = np.concatenate([np.full(e.length, returns[e.snippet]) for e in self.episodes])
+        else:
+            parts = []
+            for episode in self.episodes:
+                advantage = self.dataset.read(episode, schema.ADVANTAGES).astype(np.float64)
+                if scheme == "rwr":
+                    advantage = advantage + self.dataset.read(episode, schema.VALUES)
+                parts.append(advantage)
+            energy = np.concatenate(parts)
+        logits = energy / temperature
+        raw = np.exp(logits - logits.max())
+        # Mean weight of a sampled window = sum over steps of raw * coverage, where coverage
+        # is the probability mass of the windows covering the step, divided by the window length.
+        window = self.config.window
+        starts = self._act_offset[self._window_episode] + self._window_start
+        share = self._probabilities / window
+        size = len(raw) + window + 1
+        difference = np.bincount(starts, share, size) - np.bincount(starts + window, share, size)
+        coverage = np.cumsum(difference)[: len(raw)]
+        scale = 1.0 / float(np.sum(coverage * raw))
+        return np.minimum(raw * scale, self.config.max_weight).astype(np.float32)
+
+    def _normalisation(self) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        stats = self.dataset.statistics()
+        mean = {name: stats.proprio_mean[cols].astype(np.float32) for name, cols in self.columns.items()}
+        std = {
+            name: (np.sqrt(stats.proprio_var[cols]) + 1e-4).astype(np.float32) for name, cols in self.columns.items()
+        }
+        return mean, std
+
+    def _gather(self) -> dict[str, np.ndarray]:
+        memory: dict[str, list[np.ndarray]] = {name: [] for name in self.columns}
+        memory["actions"] = []
+        for episode in self.episodes:
+            observations = self.dataset.read(episode, schema.OBSERVATIONS)
+            for name, cols in self.columns.items():
+                memory[name].append(observations[:, cols])
+            memory["actions"].append(self.dataset.read(episode, self._action_name))
+        return {name: np.ascontiguousarray(np.concatenate(parts), dtype=np.float32) for name, parts in memory.items()}
+
+    # Access ----------------------------------------------------------------------
+
+    @property
+    def in_memory(self) -> bool:
+        """Whether the data was gathered into memory."""
+        return self._memory is not None
+
+    def __len__(self) -> int:
+        return len(self._window_start)
+
+    def probabilities(self) -> np.ndarray:
+        """Sampling probability of each window (sums to 1)."""
+        return self._probabilities
+
+    def statistics(self) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """Per-group observation mean and standard deviation (dataset-wide)."""
+        return self._mean, self._std
+
+    def __getitem__(self, index: int) -> dict[str, np.ndarray]:
+        episode = int(self._window_episode[index])
+        start = int(self._window_start[index])
+        window = self.config.window
+        act = self._act_offset[episode] + start
+        out: dict[str, np.ndarray] = {}
+        if self._memory is not None:
+            obs = self._obs_offset[episode] + start
+            for name in self.columns:
+                out[name] = self._memory[name][obs : obs + window]
+            out["actions"] = self._memory["actions"][act : act + window]
+        else:
+            observations, actions = self._episode_datasets(episode)
+            rows = observations[start : start + window]
+            for name, cols in self.columns.items():
+                out[name] = rows[:, cols].astype(np.float32)
+            out["actions"] = actions[start : start + window].astype(np.float32)
+        out["weights"] = self.weights[act : act + window]
+        return self._normalised(out)
+
+    def _episode_datasets(self, episode: int) -> tuple:
+        """Cached HDF5 dataset handles of an episode (a path lookup costs ~50 us)."""
+        if self._handles_pid != os.getpid():
+            self._handles, self._handles_pid = {}, os.getpid()
+        handles = self._handles.get(episode)
+        if handles is None:
+            ref = self.episodes[episode]
+            where = str(self.dataset.files[ref.file])
+            group = schema.group_at(self.dataset.file(ref.file), ref.group, where)
+            handles = (
+                schema.dataset_at(group, schema.OBSERVATIONS, where),
+                schema.dataset_at(group, self._action_name, where),
+            )
+            self._handles[episode] = handles
+        return handles
+
+    def sample_indices(self, batch_size: int, rng: np.random.Generator) -> np.ndarray:
+        """Window indices drawn with :meth:`probabilities`."""
+        return np.minimum(np.searchsorted(self._cdf, rng.random(batch_size) * self._cdf[-1]), len(self) - 1)
+
+    def sample_batch(self, batch_size: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
+        """A batch of windows drawn with :meth:`probabilities`, ``{name: (B, T, ...)}``."""
+        indices = self.sample_indices(batch_size, rng)
+        if self._memory is None:
+            items = [self[int(i)] for i in indices]
+            return {k: np.stack([item[k] for item in items]) for k in items[0]}
+        steps = np.arange(self.config.window)
+        episodes, starts = self._window_episode[indices], self._window_start[indices]
+        obs_rows = ((self._obs_offset[episodes] + starts)[:, None] + steps).ravel()
+        act_rows = ((self._act_offset[episodes] + starts)[:, None] + steps).ravel()
+        shape = (batch_size, self.config.window)
+        out: dict[str, np.ndarray] = {
+            name: np.take(self._memory[name], obs_rows, axis=0).reshape(*shape, -1) for name in self.columns
+        }
+        out["actions"] = np.take(self._memory["actions"], act_rows, axis=0).reshape(*shape, -1)
+        out["weights"] = self.weights[act_rows].reshape(shape)
+        return self._normalised(out)
+
+    def batches(
+        self, batch_size: int, seed: int = 0, prefetch: int = 2, device: str | torch.device = "cpu"
+    ) -> Iterator[dict[str, torch.Tensor]]:
+        """Endless batches as torch tensors, gathered by a background thread.
+
+        NumPy releases the GIL while gathering, so the next batches are built
+        while the caller trains on the current one. On CUDA the tensors are
+        copied from pinned memory without blocking.
+
+        Args:
+            batch_size: Windows per batch.
+            seed: Seed of the window sampling.
+            prefetch: Batches prepared ahead.
+            device: Where the tensors go.
+        """
+        rng = np.random.default_rng(seed)
+        device = torch.device(device)
+        pin = device.type == "cuda"
+
+        def produce() -> dict[str, torch.Tensor]:
+            batch = {
+                k: torch.from_numpy(np.ascontiguousarray(v)) for k, v in self.sample_batch(batch_size, rng).items()
+            }
+            return {k: v.pin_memory() for k, v in batch.items()} if pin else batch
+
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            pending = [pool.submit(produce) for _ in range(max(1, prefetch))]
+            while True:
+                batch = pending.pop(0).result()
+                pending.append(pool.submit(produce))
+                yield {k: v.to(device, non_blocking=pin) for k, v in batch.items()}
+
+    def _normalised(self, out: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        if self.config.normalize_observations:
+            for name in self.columns:
+                out[name] = (out[name] - self._mean[name]) / self._std[name]
+        return out
+
+    def loader(self, batch_size: int, num_workers: int = 0, seed: int = 0, batches: int = 10_000) -> DataLoader:
+        """A PyTorch ``DataLoader`` drawing windows with :meth:`probabilities`.
+
+        Args:
+            batch_size: Windows per batch.
+            num_workers: Worker processes (each reopens the files it reads).
+            seed: Seed of the window sampling.
+            batches: Batches per pass over the loader.
+        """
+        generator = torch.Generator().manual_seed(seed)
+        sampler = WeightedRandomSampler(
+            self._probabilities.tolist(),
+            num_samples=batch_size * batches,
+            replacement=True,
+            generator=generator,
+        )
+        return DataLoader(
+            self,
+            batch_size=batch_size,
+            sampler=sampler,
+            num_workers=num_workers,
+            persistent_workers=num_workers > 0,
+        )
+
+
+def _snippet_length(snippet: str) -> int:
+    _, start, end = snippet.rsplit("-", 2)
+    return max(1, int(end) - int(start))

@@ -1,0 +1,23 @@
+"""Job functions for the fan-out tests (a module, so worker processes can import them)."""
+
+import os
+from pathlib import Path
+
+
+def square(x):
+    return x * x
+
+
+def fail_once(marker, crash=False):
+    """Fails (raising, or killing its process) on the first call, succeeds afterwards."""
+    path = Path(marker)
+    if not path.exists():
+        path.write_text("attempted")
+        if crash:
+            os._exit(3)
+        raise RuntimeError("first attempt fails")
+    return "second attempt worked"
+
+
+def always_fails():
+    raise ValueError("broken job")

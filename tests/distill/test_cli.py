@@ -1,0 +1,63 @@
+import json
+
+import pytest
+
+from distill.dataset import RolloutDataset
+from mocap_hierarchy.cli import main
+
+TINY_FLAGS = [
+    "--steps-per-update",
+    "512",
+    "--minibatch-size",
+    "128",
+    "--epochs",
+    "1",
+    "--hidden-layers",
+    "16",
+    "16",
+    "--eval-every",
+    "512",
+    "--eval-episodes",
+    "2",
+    "--checkpoint-every",
+    "512",
+]
+
+
+def test_expert_train_eval_and_rollout(clip_library, tmp_path, capsys):
+    experts = tmp_path / "experts"
+    args = ["expert", "train", "--snippet", "SYN_stand-0-181", "--out", str(experts), "--steps", "512"]
+    assert main([*args, *TINY_FLAGS, "--n-envs", "1", "--residual-actions", "true"]) == 0
+    assert "SYN_stand-0-181: budget after 512 steps" in capsys.readouterr().out
+
+    results = tmp_path / "eval.json"
+    flags = ["--episodes", "4", "--init", "start", "--deterministic", "--json", str(results)]
+    assert main(["expert", "eval", str(experts), *flags]) == 0
+    assert "SYN_stand-0-181" in capsys.readouterr().out
+    evaluation = json.loads(results.read_text())
+    assert evaluation["config"]["action_noise"] == 0.0
+    assert 0.0 < evaluation["results"][0]["normalized_length"] <= 1.0
+
+    dataset = tmp_path / "dataset"
+    assert main(["rollout", "--experts", str(experts), "--out", str(dataset), "--n-start", "1", "--n-rsi", "2"]) == 0
+    assert RolloutDataset(dataset).snippets() == ["SYN_stand-0-181"]
+    assert main(["rollout", "--experts", str(experts), "--out", str(dataset), "--n-start", "1", "--n-rsi", "2"]) == 0
+    assert "1 were already complete" in capsys.readouterr().out
+
+
+def test_train_many_skips_finished_and_reports(clip_library, tmp_path, capsys):
+    snippets = tmp_path / "snippets.txt"
+    snippets.write_text("SYN_wave-0-196\nSYN_stand-148-330\n")
+    out = tmp_path / "experts"
+    args = ["expert", "train-many", "--snippets", str(snippets), "--out", str(out), "--steps", "512", "--workers", "2"]
+    assert main([*args, *TINY_FLAGS]) == 0
+    assert "2 ok, 0 skipped, 0 failed" in capsys.readouterr().out
+    assert main([*args, *TINY_FLAGS]) == 0
+    assert "0 ok, 2 skipped, 0 failed" in capsys.readouterr().out
+
+
+def test_expert_command_errors(tmp_path, capsys):
+    assert main(["expert", "eval", str(tmp_path / "none")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["expert", "train", "--snippet", "SYN_stand", "--out", str(tmp_path), "--epochs", "many"])

@@ -1,0 +1,134 @@
+import json
+import pickle
+
+import numpy as np
+import pytest
+from stable_baselines3 import PPO
+
+from distill.expert_config import ExpertConfig, PiecewiseLearningRate
+from distill.expert_files import ExpertDir, ExpertFilesError, find_experts
+from distill.expert_policy import load_expert
+from distill.expert_training import ConfigMismatchError, _Trainer, keep_training, train_expert
+from tasks.tracking import ClipTrackingEnv, TrackingConfig
+
+
+def test_training_writes_the_seed_layout(trained_expert, snippet):
+    expert = ExpertDir(trained_expert)
+    assert trained_expert.name == snippet
+    info = json.loads(expert.clip_info.read_text())
+    assert info == {"clip_id": "SYN_wave", "start_step": 0, "end_step": 196}
+    for path in (expert.best_model, expert.vecnormalize, expert.sidecar_json, expert.sidecar_weights, expert.done):
+        assert path.is_file(), path
+    assert not expert.checkpoint_dir.exists()  # removed once training finished
+    evaluations = json.loads(expert.evaluations.read_text())
+    assert [e["steps"] for e in evaluations] == [512, 1024]
+
+
+def test_sb3_files_load_and_match_the_pickle_free_policy(trained_expert, snippet):
+    expert = ExpertDir(trained_expert)
+    model = PPO.load(expert.best_model, device="cpu")  # stable-baselines3's own loader (seed A.1)
+    with expert.vecnormalize.open("rb") as f:
+        normaliser = pickle.load(f)
+    policy = load_expert(trained_expert)  # reads only JSON + safetensors
+    env = ClipTrackingEnv(TrackingConfig(snippets=(snippet,), ref_steps=(0,), observables="expert"))
+    for seed in range(3):
+        observation, _ = env.reset(seed=seed)
+        batch = {k: v[None] for k, v in observation.items()}
+        normalised = normaliser.normalize_obs(batch)
+        action, _ = model.predict(normalised, deterministic=True)
+        output = policy.act(batch)
+        np.testing.assert_allclose(output.mean_actions, action, atol=1e-6)
+        tensor, _ = model.policy.obs_to_tensor(normalised)
+        value = model.policy.predict_values(tensor).item() * np.sqrt(normaliser.ret_rms.var + normaliser.epsilon)
+        assert output.values[0] == pytest.approx(value, rel=1e-5)
+
+
+def test_sampled_log_probs_are_gaussian(trained_expert, snippet):
+    policy = load_expert(trained_expert)
+    env = ClipTrackingEnv(TrackingConfig(snippets=(snippet,), ref_steps=(0,), observables="expert"))
+    observation, _ = env.reset(seed=0)
+    batch = {k: np.repeat(v[None], 2000, axis=0) for k, v in observation.items()}
+    output = policy.act(batch, np.random.default_rng(0))
+    mean = policy.act(batch).mean_actions[0]
+    inside = np.abs(mean) < 0.6  # away from the [-1, 1] clipping
+    assert np.std(output.actions[:, inside], axis=0).mean() == pytest.approx(0.1, rel=0.05)
+    expected = -56 * (np.log(0.1) + 0.5 * np.log(2 * np.pi))  # log-density at the mean
+    assert policy.act({k: v[:1] for k, v in batch.items()}).log_probs[0] == pytest.approx(expected)
+
+
+def test_rerun_skips_a_finished_expert(trained_expert, snippet, tiny):
+    result = train_expert(snippet, trained_expert.parent, tiny, progress=False)
+    assert result.stop_reason == "already_done" and result.steps >= 1024
+
+
+def test_interrupted_training_resumes_from_its_checkpoint(clip_library, tmp_path, monkeypatch, snippet, tiny):
+    config = ExpertConfig(**{**tiny.__dict__, "total_steps": 1536})
+    original = _Trainer.evaluate
+    calls = {"n": 0}
+
+    def crash_on_second_evaluation(self, model, steps, state):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise KeyboardInterrupt("simulated kill")
+        return original(self, model, steps, state)
+
+    monkeypatch.setattr(_Trainer, "evaluate", crash_on_second_evaluation)
+    with pytest.raises(KeyboardInterrupt):
+        train_expert(snippet, tmp_path, config, progress=False)
+    expert = ExpertDir(tmp_path / snippet)
+    state = json.loads((expert.checkpoint_dir / "state.json").read_text())
+    assert state["steps"] == 512 and not expert.done.exists()
+
+    with pytest.raises(ConfigMismatchError, match="learning_rates"):
+        train_expert(snippet, tmp_path, ExpertConfig(**{**config.__dict__, "learning_rates": (1e-3,)}), progress=False)
+
+    monkeypatch.setattr(_Trainer, "evaluate", original)
+    result = train_expert(snippet, tmp_path, config, progress=False)
+    assert result.stop_reason == "budget" and result.steps == 1536
+    steps = [e["steps"] for e in json.loads(expert.evaluations.read_text())]
+    assert steps == [512, 1024, 1536]  # history kept; training continued from 512, not from 0
+
+
+def test_learning_rate_thirds():
+    schedule = PiecewiseLearningRate((1e-5, 6e-6, 3e-6))
+    assert [schedule(p) for p in (1.0, 0.7, 0.66, 0.4, 0.2, 0.0)] == [1e-5, 1e-5, 6e-6, 6e-6, 3e-6, 3e-6]
+
+
+def test_early_stopping_rule():
+    config = ExpertConfig(early_stop_length=0.98, early_stop_improvement=0.01, early_stop_patience=10_000_000)
+    state = {"plateau_reward": None, "plateau_since": None}
+    assert keep_training(state, 0.97, 0.5, 1_000_000, config)  # too short: no plateau yet
+    assert keep_training(state, 0.99, 0.60, 2_000_000, config)  # plateau starts
+    assert keep_training(state, 0.99, 0.605, 8_000_000, config)  # +0.8%: not an improvement
+    assert not keep_training(state, 0.99, 0.605, 12_000_000, config)  # 10M steps without one
+    state = {"plateau_reward": 0.6, "plateau_since": 2_000_000}
+    assert keep_training(state, 0.99, 0.61, 12_000_000, config)  # +1.7% resets the count
+    assert state["plateau_since"] == 12_000_000
+
+
+def test_missing_expert_files_are_named(tmp_path, trained_expert, snippet):
+    with pytest.raises(ExpertFilesError, match="does not exist"):
+        load_expert(tmp_path / "nope")
+    broken = tmp_path / snippet
+    (broken / "eval_rsi" / "model").mkdir(parents=True)
+    (broken / "clip_info.json").write_text(json.dumps({"clip_id": "SYN_wave", "start_step": 0, "end_step": 196}))
+    with pytest.raises(ExpertFilesError, match=r"eval_rsi/model/best_model.zip is missing"):
+        load_expert(broken)
+    with pytest.raises(ExpertFilesError, match="no expert"):
+        find_experts(broken / "eval_rsi")
+
+
+def test_foreign_expert_needs_trust_to_unpickle(trained_expert, tmp_path, snippet):
+    import shutil
+
+    copy = tmp_path / snippet
+    shutil.copytree(trained_expert, copy)
+    for sidecar in ("expert.json", "expert.safetensors"):
+        (copy / "eval_rsi" / "model" / sidecar).unlink()
+    with pytest.raises(ExpertFilesError, match="trust_pickle"):
+        load_expert(copy)
+    converted = load_expert(copy, trust_pickle=True)
+    original = load_expert(trained_expert)
+    observation = {k: np.ones((1, n)) for k, n in original.spec.observation_sizes.items()}
+    np.testing.assert_allclose(converted.act(observation).mean_actions, original.act(observation).mean_actions)
+    assert (copy / "eval_rsi" / "model" / "expert.json").is_file()  # converted once, safe afterwards

@@ -1,0 +1,48 @@
+import sys
+from pathlib import Path
+
+import pytest
+
+from distill.fanout import Job, run_jobs, summarise
+
+sys.path.insert(0, str(Path(__file__).parent))  # spawned workers inherit sys.path
+import fanout_jobs
+
+
+def jobs(tmp_path):
+    return [
+        Job("square", fanout_jobs.square, {"x": 3}),
+        Job("raises_once", fanout_jobs.fail_once, {"marker": str(tmp_path / "a")}),
+        Job("crashes_once", fanout_jobs.fail_once, {"marker": str(tmp_path / "b"), "crash": True}),
+        Job("broken", fanout_jobs.always_fails),
+        Job("finished", fanout_jobs.square, {"x": 1}, done=True),
+    ]
+
+
+def check(reports):
+    by_name = {r.name: r for r in reports}
+    assert by_name["square"].status == "ok" and by_name["square"].result == 9
+    assert by_name["raises_once"].status == "ok" and by_name["raises_once"].attempts >= 2
+    assert by_name["crashes_once"].status == "ok" and by_name["crashes_once"].attempts == 2
+    assert by_name["broken"].status == "failed" and by_name["broken"].attempts == 3
+    assert "ValueError" in by_name["broken"].error
+    assert by_name["finished"].status == "skipped" and by_name["finished"].attempts == 0
+    text = summarise(reports)
+    assert "3 ok, 1 skipped, 1 failed" in text and "broken job" in text
+
+
+def test_process_pool_retries_and_reports(tmp_path):
+    check(run_jobs(jobs(tmp_path), workers=2, progress=False))
+
+
+def test_ray_path_on_a_local_instance(tmp_path):
+    pytest.importorskip("ray")
+    import ray.cloudpickle
+
+    ray.cloudpickle.register_pickle_by_value(fanout_jobs)  # Ray workers do not see the tests folder
+    check(run_jobs(jobs(tmp_path), ray_address="local", progress=False))
+
+
+def test_duplicate_names_are_refused():
+    with pytest.raises(ValueError, match="unique"):
+        run_jobs([Job("a", fanout_jobs.square, {"x": 1}), Job("a", fanout_jobs.square, {"x": 2})], progress=False)
