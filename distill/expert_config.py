@@ -28,6 +28,7 @@ class ExpertConfig:
         termination_threshold: Tracking error that ends an episode.
         train_min_steps: Random training starts exclude the last ``train_min_steps + 1`` frames.
         eval_every: Evaluate every this many environment steps.
+        eval_at_start: Also evaluate the untrained policy (step 0), so curves start at the beginning.
         eval_episodes: Episodes per evaluation.
         eval_min_steps: Evaluation starts exclude the last ``eval_min_steps + 1`` frames (30).
         eval_action_noise: Action noise during evaluation (deterministic policy plus this noise).
@@ -35,7 +36,8 @@ class ExpertConfig:
         early_stop_improvement: Relative improvement of the normalised reward that counts.
         early_stop_patience: Stop after this many steps without such an improvement.
         checkpoint_every: Save a resumable checkpoint every this many steps.
-        n_envs: Parallel environments; 0 means one per CPU core.
+        n_envs: Parallel environments; 0 means one per CPU core (at most, so that
+            they divide ``steps_per_update``).
         subprocess_envs: Run environments in worker processes (else all in this process).
         torch_threads: Torch CPU threads; 0 keeps torch's default.
         device: Torch device for the networks (``auto``, ``cpu``, ``cuda``).
@@ -57,6 +59,7 @@ class ExpertConfig:
     termination_threshold: float = 0.3
     train_min_steps: int = 9
     eval_every: int = 1_000_000
+    eval_at_start: bool = True
     eval_episodes: int = 1000
     eval_min_steps: int = 29
     eval_action_noise: float = 0.1
@@ -71,8 +74,11 @@ class ExpertConfig:
     seed: int = 0
 
     def resolved_envs(self) -> int:
-        """Number of environments to run (``n_envs``, or one per CPU core)."""
-        return self.n_envs if self.n_envs > 0 else max(1, os.cpu_count() or 1)
+        """Number of environments: ``n_envs``, or as many as CPU cores that divide ``steps_per_update``."""
+        if self.n_envs > 0:
+            return self.n_envs
+        cores = max(1, os.cpu_count() or 1)
+        return max(d for d in range(1, cores + 1) if self.steps_per_update % d == 0)
 
     def validate(self) -> None:
         """Raises ValueError with the offending field if the settings cannot work."""

@@ -88,7 +88,7 @@ def _tracking_config(snippet: str, clips: str, config: ExpertConfig) -> Tracking
 
 def _training_fields(config: ExpertConfig) -> dict:
     """Settings that must match to resume (not the budget or the machine)."""
-    ignore = {"total_steps", "n_envs", "subprocess_envs", "torch_threads", "device"}
+    ignore = {"total_steps", "n_envs", "subprocess_envs", "torch_threads", "device", "eval_at_start"}
     return {k: v for k, v in asdict(config).items() if k not in ignore}
 
 
@@ -121,6 +121,10 @@ class _ExpertCallback(BaseCallback):
         self.stop_reason = "budget"
 
     def _on_training_start(self) -> None:
+        model = self.model
+        assert isinstance(model, PPO)
+        if self.trainer.config.eval_at_start and not self.state["evaluations"]:
+            self.trainer.evaluate(model, 0, self.state)
         self.bar = tqdm(
             total=self.trainer.config.total_steps,
             initial=self.num_timesteps,

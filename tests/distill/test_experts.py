@@ -21,7 +21,7 @@ def test_training_writes_the_seed_layout(trained_expert, snippet):
         assert path.is_file(), path
     assert not expert.checkpoint_dir.exists()  # removed once training finished
     evaluations = json.loads(expert.evaluations.read_text())
-    assert [e["steps"] for e in evaluations] == [512, 1024]
+    assert [e["steps"] for e in evaluations] == [0, 512, 1024]
 
 
 def test_sb3_files_load_and_match_the_pickle_free_policy(trained_expert, snippet):
@@ -66,13 +66,13 @@ def test_interrupted_training_resumes_from_its_checkpoint(clip_library, tmp_path
     original = _Trainer.evaluate
     calls = {"n": 0}
 
-    def crash_on_second_evaluation(self, model, steps, state):
+    def crash_on_third_evaluation(self, model, steps, state):
         calls["n"] += 1
-        if calls["n"] == 2:
+        if calls["n"] == 3:  # step 0, 512, then 1024
             raise KeyboardInterrupt("simulated kill")
         return original(self, model, steps, state)
 
-    monkeypatch.setattr(_Trainer, "evaluate", crash_on_second_evaluation)
+    monkeypatch.setattr(_Trainer, "evaluate", crash_on_third_evaluation)
     with pytest.raises(KeyboardInterrupt):
         train_expert(snippet, tmp_path, config, progress=False)
     expert = ExpertDir(tmp_path / snippet)
@@ -86,7 +86,7 @@ def test_interrupted_training_resumes_from_its_checkpoint(clip_library, tmp_path
     result = train_expert(snippet, tmp_path, config, progress=False)
     assert result.stop_reason == "budget" and result.steps == 1536
     steps = [e["steps"] for e in json.loads(expert.evaluations.read_text())]
-    assert steps == [512, 1024, 1536]  # history kept; training continued from 512, not from 0
+    assert steps == [0, 512, 1024, 1536]  # history kept; training continued from 512, not from 0
 
 
 def test_learning_rate_thirds():
@@ -132,3 +132,14 @@ def test_foreign_expert_needs_trust_to_unpickle(trained_expert, tmp_path, snippe
     observation = {k: np.ones((1, n)) for k, n in original.spec.observation_sizes.items()}
     np.testing.assert_allclose(converted.act(observation).mean_actions, original.act(observation).mean_actions)
     assert (copy / "eval_rsi" / "model" / "expert.json").is_file()  # converted once, safe afterwards
+
+
+def test_automatic_environment_count_divides_the_update(monkeypatch):
+    import distill.expert_config as module
+
+    monkeypatch.setattr(module.os, "cpu_count", lambda: 6)
+    assert ExpertConfig().resolved_envs() == 4  # 8192 steps split over 4 environments
+    assert ExpertConfig(steps_per_update=6000).resolved_envs() == 6
+    ExpertConfig().validate()
+    with pytest.raises(ValueError, match="multiple of the number of environments"):
+        ExpertConfig(n_envs=3).validate()

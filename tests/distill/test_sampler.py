@@ -103,3 +103,28 @@ def test_bad_sampler_settings_are_explained(dataset):
         WindowDataset(dataset, GROUPS, SamplerConfig(window=5000))
     with pytest.raises(schema.DatasetError, match="not in the dataset"):
         WindowDataset(dataset, {"state": ("walker/joints_pos", "walker/imaginary")}, SamplerConfig())
+
+
+def test_memory_mapped_cache_gives_the_same_windows(dataset, tmp_path):
+    in_memory = WindowDataset(dataset, GROUPS, SamplerConfig(in_memory=True))
+    mapped = WindowDataset(dataset, GROUPS, SamplerConfig(in_memory=False, cache_dir=str(tmp_path)))
+    assert isinstance(mapped._memory["state"], np.memmap)
+    for index in (0, 99, len(mapped) - 1):
+        for key, value in in_memory[index].items():
+            np.testing.assert_array_equal(mapped[index][key], value)
+    created = sorted(p.name for p in next(tmp_path.iterdir()).iterdir())
+    assert created == ["actions.npy", "reference.npy", "state.npy"]
+    again = WindowDataset(dataset, GROUPS, SamplerConfig(in_memory=False, cache_dir=str(tmp_path)))
+    assert sorted(p.name for p in tmp_path.iterdir()) == [next(tmp_path.iterdir()).name]  # reused, not rebuilt
+    np.testing.assert_array_equal(again[5]["state"], mapped[5]["state"])
+
+
+def test_prefetching_batches_match_sample_batch(dataset):
+    windows = WindowDataset(dataset, GROUPS, SamplerConfig(weighting="rwr"))
+    stream = windows.batches(32, seed=4, prefetch=2)
+    rng = np.random.default_rng(4)
+    for _ in range(6):  # more draws than buffers: the ring is reused
+        batch = {k: v.numpy().copy() for k, v in next(stream).items()}
+        expected = windows.sample_batch(32, rng)
+        for key, value in expected.items():
+            np.testing.assert_array_equal(batch[key], value)
