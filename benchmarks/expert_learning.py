@@ -37,6 +37,29 @@ def steps_to(evaluations: list[dict], threshold: float) -> int | None:
     return None
 
 
+def plot(curves: dict[str, list[dict]], snippet: str, budget: int, rates: list[float], path: Path) -> None:
+    """Normalised episode length and reward against environment steps, one line per mode."""
+    figure, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for mode, records in curves.items():
+        steps = [r["steps"] for r in records]
+        axes[0].plot(steps, [r["normalized_length"] for r in records], marker="o", label=mode)
+        axes[1].plot(steps, [r["normalized_reward"] for r in records], marker="o", label=mode)
+    for axis, title in zip(axes, ("normalised episode length", "normalised episode reward"), strict=True):
+        axis.set_xlabel("environment steps")
+        axis.set_title(title)
+        axis.set_ylim(0, 1)
+        axis.grid(alpha=0.3)
+        axis.legend()
+    seed_rates = list(ExpertConfig().learning_rates)
+    label = (
+        "seed settings" if rates == seed_rates else "seed settings, step size " + " / ".join(f"{r:g}" for r in rates)
+    )
+    figure.suptitle(f"{snippet}: PPO expert, {label}, {budget:,} steps")
+    figure.tight_layout()
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, format="png", dpi=120)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--snippet", default="SYN_wave-0-196")
@@ -48,9 +71,16 @@ def main() -> None:
     parser.add_argument("--n-envs", type=int, default=0, help="0: one per core")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="runs/expert_learning")
+    parser.add_argument("--replot", action="store_true", help="only redraw the plot from OUT/summary.json")
     args = parser.parse_args()
 
     out = Path(args.out)
+    rates = list(args.learning_rates or ExpertConfig().learning_rates)
+    if args.replot:
+        saved = json.loads((out / "summary.json").read_text())
+        rates = saved.get("learning_rates", rates)
+        plot(saved["curves"], saved["snippet"], saved["budget"], rates, out / "expert_learning.png")
+        return
     curves: dict[str, list[dict]] = {}
     for mode in args.modes:
         config = ExpertConfig(
@@ -82,26 +112,13 @@ def main() -> None:
         out / "summary.json", {"snippet": args.snippet, "budget": args.steps, "modes": summary, "curves": curves}
     )
 
-    figure, axes = plt.subplots(1, 2, figsize=(10, 4))
-    for mode, records in curves.items():
-        steps = [r["steps"] for r in records]
-        axes[0].plot(steps, [r["normalized_length"] for r in records], marker="o", label=mode)
-        axes[1].plot(steps, [r["normalized_reward"] for r in records], marker="o", label=mode)
-    for axis, title in zip(axes, ("normalised episode length", "normalised episode reward"), strict=True):
-        axis.set_xlabel("environment steps")
-        axis.set_title(title)
-        axis.set_ylim(0, 1)
-        axis.grid(alpha=0.3)
-        axis.legend()
-    figure.suptitle(f"{args.snippet}: PPO expert, seed settings, {args.steps:,} steps")
-    figure.tight_layout()
-    with atomic_path(out / "expert_learning.png") as temporary:
-        figure.savefig(temporary, format="png", dpi=120)
+    plot(curves, args.snippet, args.steps, rates, out / "expert_learning.png")
 
     print(f"\n{'mode':<10}{'to 0.5':>10}{'to 0.9':>10}{'first len':>11}{'last len':>10}{'last rew':>10}")
     for mode, row in summary.items():
+        to_half, to_most = row["steps_to_length_0.5"], row["steps_to_length_0.9"]
         print(
-            f"{mode:<10}{row['steps_to_length_0.5'] or '-':>10}{row['steps_to_length_0.9'] or '-':>10}"
+            f"{mode:<10}{'-' if to_half is None else to_half:>10}{'-' if to_most is None else to_most:>10}"
             f"{row['first']['normalized_length']:>11.3f}{row['last']['normalized_length']:>10.3f}"
             f"{row['last']['normalized_reward']:>10.3f}"
         )

@@ -233,26 +233,28 @@ class _Trainer:
     def _save_best(self, model: PPO, venv: VecNormalize, policy) -> None:
         model_dir = self.expert.model_dir
         model_dir.mkdir(parents=True, exist_ok=True)
-        with atomic_path(self.expert.best_model) as temporary:
-            model.save(str(temporary.with_suffix(".zip")), exclude=_SB3_SAVE_EXCLUDE)
-            temporary.with_suffix(".zip").replace(temporary)
-        with atomic_path(self.expert.vecnormalize) as temporary:
-            venv.save(str(temporary))
+        _save_sb3(model, venv, self.expert.best_model, self.expert.vecnormalize)
         policy.save(self.expert)
 
     def checkpoint(self, model: PPO, state: dict) -> None:
         """Writes a resumable checkpoint (model, normaliser, callback state)."""
         folder = self.expert.checkpoint_dir
         folder.mkdir(parents=True, exist_ok=True)
-        with atomic_path(folder / "model.zip") as temporary:
-            model.save(str(temporary.with_suffix(".zip")), exclude=_SB3_SAVE_EXCLUDE)
-            temporary.with_suffix(".zip").replace(temporary)
         venv = model.get_vec_normalize_env()
         assert venv is not None
-        with atomic_path(folder / "vecnormalize.pkl") as temporary:
-            venv.save(str(temporary))
+        _save_sb3(model, venv, folder / "model.zip", folder / "vecnormalize.pkl")
         saved = {k: v for k, v in state.items() if k != "recent"}
         write_json(folder / "state.json", {**saved, "steps": int(model.num_timesteps)})
+
+
+def _save_sb3(model: PPO, venv, model_path: Path, normaliser_path: Path) -> None:
+    """Saves a PPO model and its VecNormalize with stable-baselines3's own formats, atomically."""
+    with atomic_path(model_path) as temporary:
+        zipped = temporary.with_suffix(".zip")  # SB3 appends .zip to names without it
+        model.save(str(zipped), exclude=_SB3_SAVE_EXCLUDE)
+        zipped.replace(temporary)
+    with atomic_path(normaliser_path) as temporary:
+        venv.save(str(temporary))
 
 
 def train_expert(

@@ -270,7 +270,9 @@ class WindowDataset(Dataset):
 
     def _allocate(self, batch_size: int) -> dict[str, np.ndarray]:
         shape = (batch_size, self.config.window)
-        out = {name: np.empty((*shape, len(cols)), dtype=np.float32) for name, cols in self.columns.items()}
+        out: dict[str, np.ndarray] = {
+            name: np.empty((*shape, len(cols)), dtype=np.float32) for name, cols in self.columns.items()
+        }
         out["actions"] = np.empty((*shape, 56), dtype=np.float32)
         out["weights"] = np.empty(shape, dtype=np.float32)
         return out

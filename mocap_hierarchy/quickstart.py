@@ -17,6 +17,7 @@ the GPT join as they land.
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -50,7 +51,7 @@ class QuickstartConfig:
     out: str = "runs/quickstart"
     episodes_per_snippet: int = 3
     expert_snippets: tuple[str, ...] = ("SYN_wave-0-196", "SYN_walk_slow-0-182", "SYN_squat-0-155")
-    expert_steps: int = 24_576
+    expert_steps: int = 16_384
     residual_actions: bool = True
     rollouts_per_snippet: int = 5
     scale: float = 1.0
@@ -67,9 +68,16 @@ def run_quickstart(config: QuickstartConfig) -> dict:
     snippets = [str(s) for clip_id, frames in clips.items() for s in snippets_of_clip(clip_id, frames)]
     print(f"clip library: {library} ({len(clips)} clips, {sum(clips.values())} frames, {len(snippets)} snippets)")
 
-    playback, speed = _playback(
-        snippets, str(library), max(1, round(config.episodes_per_snippet * config.scale)), config
-    )
+    episodes = max(1, round(config.episodes_per_snippet * config.scale))
+    cached = out / "playback.json"
+    key = [episodes, config.seed, len(snippets)]
+    if cached.is_file() and json.loads(cached.read_text()).get("key") == key:
+        saved = json.loads(cached.read_text())
+        playback, speed = saved["rows"], saved["env_steps_per_second"]
+        print(f"playback: reusing {cached}")
+    else:
+        playback, speed = _playback(snippets, str(library), episodes, config)
+        write_json(cached, {"key": key, "rows": playback, "env_steps_per_second": speed})
     experts = _experts(out / "experts", str(library), config)
     dataset = _dataset(out / "experts", out / "dataset", str(library), config)
 
