@@ -77,27 +77,13 @@ def _train(args: argparse.Namespace) -> None:
 
 
 def _train_many(args: argparse.Namespace) -> None:
-    from distill.expert_files import expert_dir_for
-    from distill.expert_training import train_expert
-    from distill.fanout import Job, run_jobs, summarise
-    from tasks.clips import parse_snippet_id
+    from distill.expert_training import expert_jobs
+    from distill.fanout import run_jobs, summarise
 
     if not args.snippets.is_file():
         raise FileNotFoundError(f"snippet list {args.snippets} does not exist (one snippet id per line)")
     snippets = [line.strip() for line in args.snippets.read_text().splitlines() if line.strip()]
-    for snippet in snippets:
-        parse_snippet_id(snippet)
-    # One process per expert, one environment and one torch thread each: no oversubscription.
-    config = _expert_config(args, n_envs=1, subprocess_envs=False, torch_threads=1)
-    jobs = [
-        Job(
-            name=snippet,
-            function=train_expert,
-            kwargs={"snippet": snippet, "out": args.out, "config": config, "clips": args.clips, "progress": False},
-            done=expert_dir_for(args.out, snippet).is_done(),
-        )
-        for snippet in snippets
-    ]
+    jobs = expert_jobs(snippets, args.out, _expert_config(args), args.clips)
     reports = run_jobs(jobs, workers=args.workers, max_attempts=args.max_attempts, ray_address=args.ray)
     print(summarise(reports))
     if any(r.status == "failed" for r in reports):
@@ -136,26 +122,11 @@ def _evaluate(args: argparse.Namespace) -> None:
 
 
 def _rollout(args: argparse.Namespace) -> None:
-    from collections import defaultdict
-
-    from distill.expert_files import find_experts
-    from distill.fanout import Job, run_jobs, summarise
-    from distill.rollouts import is_complete, rollout_clip
-    from tasks.clips import parse_snippet_id
+    from distill.fanout import run_jobs, summarise
+    from distill.rollouts import rollout_clip, rollout_jobs
 
     config = dataclass_from_args(RolloutConfig, args)
-    by_clip: dict[str, dict[str, object]] = defaultdict(dict)
-    for snippet, expert in find_experts(args.experts).items():
-        by_clip[parse_snippet_id(snippet).clip_id][snippet] = expert.root
-    jobs = [
-        Job(
-            name=clip_id,
-            function=rollout_clip,
-            kwargs={"clip_id": clip_id, "experts": experts, "out": args.out, "config": config, "clips": args.clips},
-            done=is_complete(args.out / f"{clip_id}.hdf5", list(experts), config.n_start, config.n_rsi),
-        )
-        for clip_id, experts in sorted(by_clip.items())
-    ]
+    jobs = rollout_jobs(args.experts, args.out, config, args.clips)
     if args.workers <= 1 and args.ray is None:
         for job in jobs:
             if not job.done:

@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 
 from distill import dataset_schema as schema
+from tasks.clips import parse_snippet_id
 
 
 @dataclass(frozen=True)
@@ -99,38 +100,49 @@ class RolloutDataset:
         self.files = dataset_files(paths)
         self._handles: list[h5py.File] | None = None
         self._pid = -1
-        layouts = []
-        for path in self.files:
+        self.layouts: list[schema.FileLayout] = []
+        self.episodes: list[EpisodeRef] = []
+        for number, path in enumerate(self.files):
+            where = str(path)
             try:
                 with h5py.File(path, "r") as f:
-                    layouts.append(schema.validate(f, str(path)))
+                    layout = schema.validate(f, where)
+                    self._check_matches_first(path, layout)
+                    self.layouts.append(layout)
+                    self.episodes += self._episode_refs(f, number, layout, where, n_start, n_rsi)
             except OSError as error:
                 raise schema.DatasetError(
                     f"{path} is not a readable HDF5 file ({error}); it may be truncated: write it again with "
                     "`mocap-hierarchy rollout`"
                 ) from None
-        first = layouts[0]
-        for path, layout in zip(self.files, layouts, strict=True):
-            same_columns = layout.observable_indices.keys() == first.observable_indices.keys()
-            if layout.ref_steps != first.ref_steps or not same_columns:
-                raise schema.DatasetError(f"{path} stores different observables or ref_steps than {self.files[0]}")
-        self.layouts = layouts
+        first = self.layouts[0]
         self.ref_steps = first.ref_steps
         self.observable_indices = first.observable_indices
-        self.has_log_probs = all(layout.has_log_probs for layout in layouts)
-        self.episodes: list[EpisodeRef] = []
-        for number, (path, layout) in enumerate(zip(self.files, layouts, strict=True)):
-            starts = layout.n_start if n_start < 0 else min(n_start, layout.n_start)
-            randoms = layout.n_rsi if n_rsi < 0 else min(n_rsi, layout.n_rsi)
-            with h5py.File(path, "r") as f:
-                for snippet in layout.snippets:
-                    where = str(path)
-                    start_lengths = schema.dataset_at(f, f"{snippet}/{schema.START_METRICS}/episode_lengths", where)
-                    random_lengths = schema.dataset_at(f, f"{snippet}/{schema.RSI_METRICS}/episode_lengths", where)
-                    lengths = np.concatenate([start_lengths[:starts], random_lengths[:randoms]])
-                    indices = list(range(starts)) + list(range(layout.n_start, layout.n_start + randoms))
-                    for index, length in zip(indices, lengths, strict=True):
-                        self.episodes.append(EpisodeRef(number, snippet, index, int(length), index < layout.n_start))
+        self.has_log_probs = all(layout.has_log_probs for layout in self.layouts)
+
+    def _check_matches_first(self, path: Path, layout: schema.FileLayout) -> None:
+        if not self.layouts:
+            return
+        first = self.layouts[0]
+        same_columns = layout.observable_indices.keys() == first.observable_indices.keys()
+        if layout.ref_steps != first.ref_steps or not same_columns:
+            raise schema.DatasetError(f"{path} stores different observables or ref_steps than {self.files[0]}")
+
+    @staticmethod
+    def _episode_refs(
+        f: h5py.File, number: int, layout: schema.FileLayout, where: str, n_start: int, n_rsi: int
+    ) -> list[EpisodeRef]:
+        starts = layout.n_start if n_start < 0 else min(n_start, layout.n_start)
+        randoms = layout.n_rsi if n_rsi < 0 else min(n_rsi, layout.n_rsi)
+        indices = list(range(starts)) + list(range(layout.n_start, layout.n_start + randoms))
+        refs = []
+        for snippet in layout.snippets:
+            start_lengths = schema.dataset_at(f, f"{snippet}/{schema.START_METRICS}/episode_lengths", where)
+            random_lengths = schema.dataset_at(f, f"{snippet}/{schema.RSI_METRICS}/episode_lengths", where)
+            lengths = np.concatenate([start_lengths[:starts], random_lengths[:randoms]])
+            for index, length in zip(indices, lengths, strict=True):
+                refs.append(EpisodeRef(number, snippet, index, int(length), index < layout.n_start))
+        return refs
 
     # Listing -------------------------------------------------------------------
 
@@ -140,7 +152,7 @@ class RolloutDataset:
 
     def clips(self) -> list[str]:
         """Clip ids in the dataset."""
-        return sorted({s.rsplit("-", 2)[0] for s in self.snippets()})
+        return sorted({parse_snippet_id(s).clip_id for s in self.snippets()})
 
     def episodes_of(self, snippet: str) -> list[EpisodeRef]:
         """The episodes of one snippet."""
@@ -148,10 +160,6 @@ class RolloutDataset:
         if not found:
             raise schema.DatasetError(f"snippet {snippet} is not in the dataset ({len(self.snippets())} snippets)")
         return found
-
-    def observation_size(self) -> int:
-        """Width of the stored observation vector."""
-        return 1 + max(int(v.max()) for v in self.observable_indices.values())
 
     def columns(self, keys: Sequence[str]) -> np.ndarray:
         """Concatenated column indices of observables, in the order given.

@@ -1,9 +1,7 @@
 """Evaluating snippet experts: MoCapAct's normalised episode reward and length.
 
-Episodes run in several tracking environments in lockstep with one batched
-policy call per step. Each environment runs a fixed share of the episodes (as
-stable-baselines3's ``evaluate_policy`` does) so short episodes are not
-over-represented.
+Episodes run in several tracking environments in lockstep (see
+:mod:`distill.lockstep`) with one batched policy call per step.
 """
 
 from __future__ import annotations
@@ -14,6 +12,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from distill.expert_policy import ExpertPolicy
+from distill.lockstep import Lockstep
 from tasks.tracking import ClipTrackingEnv, TrackingConfig
 from tasks.walker import WalkerModel, build_walker
 
@@ -99,31 +98,17 @@ def evaluate_policy(
     )
     n_envs = min(config.n_envs, config.episodes)
     envs = [ClipTrackingEnv(tracking, walker=walker) for _ in range(n_envs)]
-    targets = [(config.episodes + i) // n_envs for i in range(n_envs)]
-    done_counts = [0] * n_envs
-    observations = [env.reset(seed=config.seed * 100_003 + i)[0] for i, env in enumerate(envs)]
+    lockstep = Lockstep(envs, config.episodes, [config.seed * 100_003 + i for i in range(n_envs)])
     metrics: dict[str, list[float]] = {k: [] for k in ("normalized_reward", "normalized_length", "return", "length")}
     bar = tqdm(total=config.episodes, desc=f"evaluating {snippet}", unit="ep", disable=not progress)
-    active = list(range(n_envs))
-    while active:
-        batch = {k: np.stack([observations[i][k] for i in active]) for k in policy.keys}
-        actions = policy.act(batch).mean_actions
-        still_active = []
-        for row, i in enumerate(active):
-            observation, _, terminated, truncated, info = envs[i].step(actions[row])
-            if terminated or truncated:
-                metrics["normalized_reward"].append(info["normalized_episode_reward"])
-                metrics["normalized_length"].append(info["normalized_episode_length"])
-                metrics["return"].append(info["episode_return"])
-                metrics["length"].append(info["episode_length"])
-                done_counts[i] += 1
+    while lockstep.active:
+        for step in lockstep.step(policy.mean_actions(lockstep.batch(policy.keys))):
+            if step.done:
+                metrics["normalized_reward"].append(step.info["normalized_episode_reward"])
+                metrics["normalized_length"].append(step.info["normalized_episode_length"])
+                metrics["return"].append(step.info["episode_return"])
+                metrics["length"].append(step.info["episode_length"])
                 bar.update()
-                if done_counts[i] >= targets[i]:
-                    continue
-                observation, _ = envs[i].reset()
-            observations[i] = observation
-            still_active.append(i)
-        active = still_active
     bar.close()
     return EvaluationResult(
         snippet=snippet,

@@ -28,6 +28,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from tasks.atomic import write_json
 from tasks.clips import SnippetId, parse_snippet_id
 
 EXPERT_FORMAT = "mocap_hierarchy.expert"
@@ -98,13 +99,14 @@ class ExpertDir:
         """Marker written when training has finished."""
         return self.root / "done.json"
 
+    @property
+    def policy_files(self) -> tuple[Path, Path, Path]:
+        """The seed A.1 files every expert directory holds."""
+        return self.clip_info, self.best_model, self.vecnormalize
+
     def is_done(self) -> bool:
         """Whether training finished and left a complete expert."""
-        return self.done.is_file() and self.has_policy()
-
-    def has_policy(self) -> bool:
-        """Whether the A.1 files are all present."""
-        return self.clip_info.is_file() and self.best_model.is_file() and self.vecnormalize.is_file()
+        return self.done.is_file() and all(path.is_file() for path in self.policy_files)
 
     def snippet(self) -> SnippetId:
         """The snippet from ``clip_info.json``."""
@@ -115,7 +117,7 @@ class ExpertDir:
         """Raises :class:`ExpertFilesError` naming the first missing A.1 file."""
         if not self.root.is_dir():
             raise ExpertFilesError(f"expert directory {self.root} does not exist")
-        for path in (self.clip_info, self.best_model, self.vecnormalize):
+        for path in self.policy_files:
             if not path.is_file():
                 raise ExpertFilesError(
                     f"expert {self.root.name}: {path.relative_to(self.root)} is missing; an expert directory needs "
@@ -126,8 +128,6 @@ class ExpertDir:
 
 def write_clip_info(root: Path, snippet: SnippetId, clip_length: int) -> None:
     """Writes ``clip_info.json`` (whole clips get ``end_step`` = clip length)."""
-    from tasks.atomic import write_json
-
     end = clip_length if snippet.end is None else snippet.end
     write_json(root / "clip_info.json", {"clip_id": snippet.clip_id, "start_step": snippet.start, "end_step": end})
 
@@ -158,8 +158,6 @@ def find_experts(root: str | os.PathLike) -> dict[str, ExpertDir]:
         raise ExpertFilesError(f"experts directory {root} does not exist")
     experts = {}
     for info in sorted(root.rglob("clip_info.json")):
-        if "checkpoint" in info.parts:
-            continue
         expert = ExpertDir(info.parent)
         experts[str(expert.snippet())] = expert
     if not experts:

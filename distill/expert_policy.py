@@ -126,7 +126,8 @@ class ExpertPolicy(nn.Module):
         self.action = nn.Linear(sizes[-1], spec.action_size)
         self.value = nn.Linear(sizes[-1], 1)
         self._mean = {k: np.asarray(obs_mean[k], dtype=np.float64) for k in self.keys}
-        self._scale = {k: 1.0 / np.sqrt(np.asarray(obs_var[k], dtype=np.float64) + spec.obs_epsilon) for k in self.keys}
+        self._var = {k: np.asarray(obs_var[k], dtype=np.float64) for k in self.keys}
+        self._scale = {k: 1.0 / np.sqrt(self._var[k] + spec.obs_epsilon) for k in self.keys}
         self.eval()
         self.requires_grad_(False)
 
@@ -140,6 +141,12 @@ class ExpertPolicy(nn.Module):
             value = np.asarray(observations[key], dtype=np.float64).reshape(-1, self.spec.observation_sizes[key])
             parts.append(np.clip((value - self._mean[key]) * self._scale[key], -clip, clip))
         return torch.as_tensor(np.concatenate(parts, axis=1), dtype=torch.float32)
+
+    @torch.no_grad()
+    def mean_actions(self, observations: dict[str, np.ndarray]) -> np.ndarray:
+        """Deterministic actions ``(N, action_size)``, clipped to [-1, 1] (policy network only)."""
+        features = self.features(observations)
+        return np.clip(self.action(self.policy_net(features)).double().numpy(), -1.0, 1.0)
 
     @torch.no_grad()
     def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
@@ -171,7 +178,7 @@ class ExpertPolicy(nn.Module):
         tensors = {f"net.{k}": v.detach().contiguous() for k, v in self.state_dict().items()}
         for key in self.keys:
             tensors[f"obs_mean.{key}"] = torch.as_tensor(self._mean[key])
-            tensors[f"obs_var.{key}"] = torch.as_tensor(1.0 / self._scale[key] ** 2 - self.spec.obs_epsilon)
+            tensors[f"obs_var.{key}"] = torch.as_tensor(self._var[key])
         with atomic_path(expert.sidecar_weights) as temporary:
             save_file(tensors, str(temporary))
         write_json(expert.sidecar_json, self.spec.to_json())

@@ -13,6 +13,7 @@ import dataclasses
 import functools
 import json
 import math
+import shutil
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -31,6 +32,7 @@ from distill.evaluation import EvaluationConfig, evaluate_policy
 from distill.expert_config import ExpertConfig, PiecewiseLearningRate, expert_config_from_json
 from distill.expert_files import ExpertDir, expert_dir_for, write_clip_info
 from distill.expert_policy import policy_from_sb3
+from distill.fanout import Job
 from mocap_hierarchy import __version__
 from tasks.atomic import atomic_path, write_json
 from tasks.clip_format import list_clips
@@ -231,15 +233,12 @@ class _Trainer:
         return keep_training(state, evaluation.normalized_length, evaluation.normalized_reward, steps, config)
 
     def _save_best(self, model: PPO, venv: VecNormalize, policy) -> None:
-        model_dir = self.expert.model_dir
-        model_dir.mkdir(parents=True, exist_ok=True)
         _save_sb3(model, venv, self.expert.best_model, self.expert.vecnormalize)
         policy.save(self.expert)
 
     def checkpoint(self, model: PPO, state: dict) -> None:
         """Writes a resumable checkpoint (model, normaliser, callback state)."""
         folder = self.expert.checkpoint_dir
-        folder.mkdir(parents=True, exist_ok=True)
         venv = model.get_vec_normalize_env()
         assert venv is not None
         _save_sb3(model, venv, folder / "model.zip", folder / "vecnormalize.pkl")
@@ -375,12 +374,9 @@ def _check_resume(expert: ExpertDir, config: ExpertConfig) -> dict | None:
     if not state_file.is_file():
         return None
     if expert.config.is_file():
-        saved_config = expert_config_from_json(json.loads(expert.config.read_text()))
-        differences = {
-            k: (v, _training_fields(config)[k])
-            for k, v in _training_fields(saved_config).items()
-            if _training_fields(config)[k] != v
-        }
+        saved = _training_fields(expert_config_from_json(json.loads(expert.config.read_text())))
+        requested = _training_fields(config)
+        differences = {k: (v, requested[k]) for k, v in saved.items() if requested[k] != v}
         if differences:
             raise ConfigMismatchError(
                 f"{expert.root} holds a checkpoint trained with other settings {differences} (saved, requested); "
@@ -390,17 +386,24 @@ def _check_resume(expert: ExpertDir, config: ExpertConfig) -> dict | None:
 
 
 def _remove_checkpoint(expert: ExpertDir) -> None:
-    folder = expert.checkpoint_dir
-    if folder.is_dir():
-        for path in folder.iterdir():
-            path.unlink()
-        folder.rmdir()
+    shutil.rmtree(expert.checkpoint_dir, ignore_errors=True)
 
 
-def replace_config(config: ExpertConfig, **overrides) -> ExpertConfig:
-    """``dataclasses.replace`` with an error listing valid fields."""
-    valid = {f.name for f in dataclasses.fields(ExpertConfig)}
-    unknown = set(overrides) - valid
-    if unknown:
-        raise TypeError(f"unknown expert settings {sorted(unknown)}; valid: {', '.join(sorted(valid))}")
-    return dataclasses.replace(config, **overrides)
+def expert_jobs(snippets: list[str], out: str | Path, config: ExpertConfig, clips: str | None = None) -> list[Job]:
+    """One fan-out job per snippet (see :func:`distill.fanout.run_jobs`), finished experts marked done.
+
+    Each job is one process with one environment and one torch thread, so a
+    pool of one worker per core does not oversubscribe the machine.
+    """
+    for snippet in snippets:
+        parse_snippet_id(snippet)
+    config = dataclasses.replace(config, n_envs=1, subprocess_envs=False, torch_threads=1)
+    return [
+        Job(
+            name=snippet,
+            function=train_expert,
+            kwargs={"snippet": snippet, "out": out, "config": config, "clips": clips, "progress": False},
+            done=expert_dir_for(out, snippet).is_done(),
+        )
+        for snippet in snippets
+    ]

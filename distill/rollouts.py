@@ -25,6 +25,8 @@ from tqdm.auto import tqdm
 from distill import dataset_schema as schema
 from distill.expert_files import find_experts
 from distill.expert_policy import ExpertOutput, load_expert
+from distill.fanout import Job
+from distill.lockstep import Lockstep
 from mocap_hierarchy import __version__
 from tasks.atomic import atomic_path
 from tasks.clips import parse_snippet_id
@@ -160,54 +162,37 @@ def rollout_snippet(
         observables="rollout",
         init=init,
         min_steps=min_steps,
-        residual_actions=False,  # residuals are converted here, so info["action"] is exact
+        residual_actions=policy.residual_actions,
     )
     rng = np.random.default_rng(seed)
     n_envs = max(1, min(n_envs, episodes))
     envs = [ClipTrackingEnv(config, walker=walker) for _ in range(n_envs)]
+    lockstep = Lockstep(envs, episodes, [seed * 7919 + i for i in range(n_envs)])
     keys = list(OBSERVABLE_SETS["rollout"])
-    targets = [(episodes + i) // n_envs for i in range(n_envs)]
     finished: list[list[Episode]] = [[] for _ in range(n_envs)]
-    buffers = [_new_buffer() for _ in range(n_envs)]
-    for i, env in enumerate(envs):
-        observation, _ = env.reset(seed=seed * 7919 + i)
-        buffers[i]["observations"].append(_flatten(observation, keys))
-        buffers[i]["last"] = observation
-    active = [i for i in range(n_envs) if targets[i] > 0]
-    while active:
-        batch = {k: np.stack([buffers[i]["last"][k] for i in active]) for k in policy.keys}
-        output = policy.act(batch, rng)
-        still_active = []
-        for row, i in enumerate(active):
-            env, buffer = envs[i], buffers[i]
-            action, mean_action = output.actions[row], output.mean_actions[row]
-            if policy.residual_actions:
-                reference = env.reference_actuation()
-                action = np.clip(action + reference, -1.0, 1.0)
-                mean_action = np.clip(mean_action + reference, -1.0, 1.0)
-            observation, reward, terminated, truncated, info = env.step(action)
-            buffer["actions"].append(info["action"])
-            buffer["mean_actions"].append(mean_action)
+    buffers = [_new_buffer(observation, keys) for observation in lockstep.observations]
+    while lockstep.active:
+        output = policy.act(lockstep.batch(policy.keys), rng)
+        for row, i in enumerate(lockstep.active):  # before stepping moves the reference on
+            buffers[i]["mean_actions"].append(envs[i].absolute_action(output.mean_actions[row]))
+        for row, step in enumerate(lockstep.step(output.actions)):
+            buffer = buffers[step.env]
+            buffer["actions"].append(step.info["action"])
             buffer["log_probs"].append(output.log_probs[row])
-            buffer["rewards"].append(reward)
+            buffer["rewards"].append(step.reward)
             buffer["values"].append(output.values[row])
-            buffer["observations"].append(_flatten(observation, keys))
-            buffer["last"] = observation
-            if terminated or truncated:
-                finished[i].append(_episode(buffer, terminated, info, policy))
-                if len(finished[i]) >= targets[i]:
-                    continue
-                observation, _ = env.reset()
-                buffers[i] = _new_buffer()
-                buffers[i]["observations"].append(_flatten(observation, keys))
-                buffers[i]["last"] = observation
-            still_active.append(i)
-        active = still_active
+            buffer["observations"].append(_flatten(step.observation, keys))
+            if step.done:
+                finished[step.env].append(_episode(buffer, step.terminated, step.info, policy))
+                if step.next_observation is not None:
+                    buffers[step.env] = _new_buffer(step.next_observation, keys)
     return [episode for per_env in finished for episode in per_env]
 
 
-def _new_buffer() -> dict:
-    return {k: [] for k in ("observations", "actions", "mean_actions", "log_probs", "rewards", "values")}
+def _new_buffer(first_observation: dict[str, np.ndarray], keys: list[str]) -> dict[str, list]:
+    buffer: dict[str, list] = {k: [] for k in ("actions", "mean_actions", "log_probs", "rewards", "values")}
+    buffer["observations"] = [_flatten(first_observation, keys)]
+    return buffer
 
 
 def _flatten(observation: dict[str, np.ndarray], keys: list[str]) -> np.ndarray:
@@ -374,7 +359,7 @@ def rollout_clip(
         clips: Clip file.
         progress: Show a progress bar over snippets.
     """
-    path = Path(out) / f"{clip_id}{schema.FILE_SUFFIX}"
+    path = rollout_path(out, clip_id)
     if is_complete(path, list(experts), config.n_start, config.n_rsi):
         return path
     walker = build_walker()
@@ -391,6 +376,34 @@ def rollout_clip(
     return write_rollout_file(path, clip_id, results, config.n_start, config.n_rsi)
 
 
+def rollout_path(out: str | os.PathLike, clip_id: str) -> Path:
+    """The dataset file of one clip."""
+    return Path(out) / f"{clip_id}{schema.FILE_SUFFIX}"
+
+
+def experts_by_clip(experts_dir: str | os.PathLike) -> dict[str, dict[str, Path]]:
+    """Every expert under ``experts_dir`` as ``{clip id: {snippet id: expert directory}}``, sorted by clip."""
+    by_clip: dict[str, dict[str, Path]] = defaultdict(dict)
+    for snippet, expert in find_experts(experts_dir).items():
+        by_clip[parse_snippet_id(snippet).clip_id][snippet] = expert.root
+    return dict(sorted(by_clip.items()))
+
+
+def rollout_jobs(
+    experts_dir: str | os.PathLike, out: str | os.PathLike, config: RolloutConfig, clips: str | None = None
+) -> list[Job]:
+    """One fan-out job per clip (see :func:`distill.fanout.run_jobs`), complete files marked done."""
+    return [
+        Job(
+            name=clip_id,
+            function=rollout_clip,
+            kwargs={"clip_id": clip_id, "experts": experts, "out": out, "config": config, "clips": clips},
+            done=is_complete(rollout_path(out, clip_id), list(experts), config.n_start, config.n_rsi),
+        )
+        for clip_id, experts in experts_by_clip(experts_dir).items()
+    ]
+
+
 def rollout_experts(
     experts_dir: str | os.PathLike,
     out: str | os.PathLike,
@@ -399,7 +412,7 @@ def rollout_experts(
 ) -> list[Path]:
     """Rolls out every expert under ``experts_dir``, one file per clip, skipping complete files."""
     config = config or RolloutConfig()
-    by_clip: dict[str, dict[str, object]] = defaultdict(dict)
-    for snippet, expert in find_experts(experts_dir).items():
-        by_clip[parse_snippet_id(snippet).clip_id][snippet] = expert.root
-    return [rollout_clip(clip, experts, out, config, clips, progress=True) for clip, experts in sorted(by_clip.items())]
+    return [
+        rollout_clip(clip, dict(experts), out, config, clips, progress=True)
+        for clip, experts in experts_by_clip(experts_dir).items()
+    ]

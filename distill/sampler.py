@@ -26,6 +26,7 @@ path for training (whole batches gathered in a background thread).
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import math
@@ -34,14 +35,16 @@ from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import torch
 from torch.utils.data import DataLoader, Dataset, WeightedRandomSampler
 
 from distill import dataset_schema as schema
-from distill.dataset import RolloutDataset
+from distill.dataset import RolloutDataset, Statistics
 from tasks.atomic import atomic_path
+from tasks.clips import MAX_SNIPPET_LENGTH, parse_snippet_id
 
 DEFAULT_TEMPERATURES: dict[str, float | None] = {"bc": None, "cwr": 0.2, "awr": 8.0, "rwr": 4.0}
 """The seed's Table 2 temperatures per weighting scheme."""
@@ -118,8 +121,12 @@ class WindowDataset(Dataset):
         self._handles: dict[int, tuple] = {}
         self._handles_pid = -1
         self.weights = self._step_weights(lengths)
-        self._mean, self._std = self._normalisation()
-        size = sum(len(c) for c in self.columns.values()) * (lengths + 1).sum() * 4 + lengths.sum() * 56 * 4
+        statistics = dataset.statistics()
+        self._action_size = len(statistics.act_mean)
+        self._mean, self._std = self._normalisation(statistics)
+        size = 4 * (
+            sum(len(c) for c in self.columns.values()) * (lengths + 1).sum() + self._action_size * lengths.sum()
+        )
         in_memory = config.in_memory if config.in_memory is not None else size < config.memory_limit_gb * 2**30
         if in_memory:
             self._memory: dict[str, np.ndarray] | None = self._gather()
@@ -133,7 +140,7 @@ class WindowDataset(Dataset):
     def _window_probabilities(self, counts: np.ndarray) -> np.ndarray:
         factor = np.ones(len(self.episodes))
         if self.config.upsample_short_snippets:
-            lengths = np.array([_snippet_length(e.snippet) for e in self.episodes], dtype=np.float64)
+            lengths = np.array([_snippet_steps(e.snippet) for e in self.episodes], dtype=np.float64)
             factor = self.config.max_snippet_length / lengths
         per_window = np.repeat(factor, counts)
         return per_window / per_window.sum()
@@ -168,26 +175,47 @@ class WindowDataset(Dataset):
         scale = 1.0 / float(np.sum(coverage * raw))
         return np.minimum(raw * scale, self.config.max_weight).astype(np.float32)
 
-    def _normalisation(self) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-        stats = self.dataset.statistics()
+    def _normalisation(self, stats: Statistics) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         mean = {name: stats.proprio_mean[cols].astype(np.float32) for name, cols in self.columns.items()}
         std = {
             name: (np.sqrt(stats.proprio_var[cols]) + 1e-4).astype(np.float32) for name, cols in self.columns.items()
         }
         return mean, std
 
+    def _episode_arrays(self, episode: int) -> dict[str, np.ndarray]:
+        """One episode's selected observation columns and actions (float32)."""
+        ref = self.episodes[episode]
+        observations = self.dataset.read(ref, schema.OBSERVATIONS)
+        out = {name: observations[:, cols].astype(np.float32) for name, cols in self.columns.items()}
+        out["actions"] = self.dataset.read(ref, self._action_name).astype(np.float32)
+        return out
+
+    def _array_shapes(self) -> dict[str, tuple[int, int]]:
+        observation_rows = int(self._obs_offset[-1]) + self.episodes[-1].length + 1
+        action_rows = int(self._act_offset[-1]) + self.episodes[-1].length
+        shapes = {name: (observation_rows, len(cols)) for name, cols in self.columns.items()}
+        shapes["actions"] = (action_rows, self._action_size)
+        return shapes
+
+    def _write_arrays(self, arrays: dict[str, np.ndarray]) -> None:
+        """Fills arrays of :meth:`_array_shapes` episode by episode."""
+        for episode in range(len(self.episodes)):
+            obs, act = int(self._obs_offset[episode]), int(self._act_offset[episode])
+            for name, values in self._episode_arrays(episode).items():
+                first = act if name == "actions" else obs
+                arrays[name][first : first + len(values)] = values
+
     def _gather(self) -> dict[str, np.ndarray]:
-        memory: dict[str, list[np.ndarray]] = {name: [] for name in self.columns}
-        memory["actions"] = []
-        for episode in self.episodes:
-            observations = self.dataset.read(episode, schema.OBSERVATIONS)
-            for name, cols in self.columns.items():
-                memory[name].append(observations[:, cols])
-            memory["actions"].append(self.dataset.read(episode, self._action_name))
-        return {name: np.ascontiguousarray(np.concatenate(parts), dtype=np.float32) for name, parts in memory.items()}
+        arrays = {name: np.empty(shape, dtype=np.float32) for name, shape in self._array_shapes().items()}
+        self._write_arrays(arrays)
+        return arrays
 
     def _memory_mapped(self, folder: Path) -> dict[str, np.ndarray]:
-        """The gathered arrays as memory-mapped files, written once (atomically) and reused."""
+        """The gathered arrays as memory-mapped files, written once (atomically) and reused.
+
+        The files are filled episode by episode, so a dataset larger than memory never
+        has to fit in it.
+        """
         key = {
             "files": [str(p.resolve()) for p in self.dataset.files],
             "sizes": [p.stat().st_size for p in self.dataset.files],
@@ -197,12 +225,18 @@ class WindowDataset(Dataset):
         }
         digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
         folder = folder / f"windows-{digest}"
-        names = [*self.columns, "actions"]
-        if not all((folder / f"{name}.npy").is_file() for name in names):
-            for name, array in self._gather().items():
-                with atomic_path(folder / f"{name}.npy") as temporary, temporary.open("wb") as handle:
-                    np.save(handle, array)
-        return {name: np.load(folder / f"{name}.npy", mmap_mode="r") for name in names}
+        shapes = self._array_shapes()
+        if not all((folder / f"{name}.npy").is_file() for name in shapes):
+            with contextlib.ExitStack() as stack:
+                arrays = {}
+                for name, shape in shapes.items():
+                    temporary = stack.enter_context(atomic_path(folder / f"{name}.npy"))
+                    arrays[name] = np.lib.format.open_memmap(temporary, mode="w+", dtype=np.float32, shape=shape)
+                self._write_arrays(arrays)
+                for array in arrays.values():
+                    array.flush()
+                del arrays
+        return {name: np.load(folder / f"{name}.npy", mmap_mode="r") for name in shapes}
 
     # Access ----------------------------------------------------------------------
 
@@ -273,7 +307,7 @@ class WindowDataset(Dataset):
         out: dict[str, np.ndarray] = {
             name: np.empty((*shape, len(cols)), dtype=np.float32) for name, cols in self.columns.items()
         }
-        out["actions"] = np.empty((*shape, 56), dtype=np.float32)
+        out["actions"] = np.empty((*shape, self._action_size), dtype=np.float32)
         out["weights"] = np.empty(shape, dtype=np.float32)
         return out
 
@@ -310,7 +344,8 @@ class WindowDataset(Dataset):
         built while the caller trains. On CPU a yielded batch shares its buffer:
         it stays valid while the next batch is drawn and may change after the
         second (copy it to keep it). On CUDA the copies to the device are asynchronous and a
-        buffer is reused only after its copy finished.
+        buffer is reused only after its copy finished (this CUDA path has not yet been
+        run on a GPU; the CPU path is tested and benchmarked).
 
         Args:
             batch_size: Windows per batch.
@@ -341,8 +376,7 @@ class WindowDataset(Dataset):
             return slot
 
         with ThreadPoolExecutor(max_workers=1) as pool:
-            slots = list(range(len(ring)))
-            pending = [pool.submit(produce, slots[i]) for i in range(max(1, prefetch))]
+            pending = [pool.submit(produce, slot) for slot in range(max(1, prefetch))]
             next_slot = max(1, prefetch)
             while True:
                 slot = pending.pop(0).result()
@@ -374,8 +408,10 @@ class WindowDataset(Dataset):
             batches: Batches per pass over the loader.
         """
         generator = torch.Generator().manual_seed(seed)
+        # A tensor, not a list: ``tolist`` costs seconds for millions of windows.
+        probabilities = cast(Sequence[float], torch.as_tensor(self._probabilities, dtype=torch.float64))
         sampler = WeightedRandomSampler(
-            self._probabilities.tolist(),
+            probabilities,
             num_samples=batch_size * batches,
             replacement=True,
             generator=generator,
@@ -389,6 +425,9 @@ class WindowDataset(Dataset):
         )
 
 
-def _snippet_length(snippet: str) -> int:
-    _, start, end = snippet.rsplit("-", 2)
-    return max(1, int(end) - int(start))
+def _snippet_steps(snippet: str) -> int:
+    """Steps of a ``CLIP-START-END`` snippet (a bare clip id counts as the longest snippet)."""
+    parsed = parse_snippet_id(snippet)
+    if parsed.end is None:
+        return MAX_SNIPPET_LENGTH
+    return max(1, parsed.end - parsed.start)

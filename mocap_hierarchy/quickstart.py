@@ -128,8 +128,8 @@ def _experts(folder: Path, library: str, config: QuickstartConfig) -> list[dict]
     from distill.expert_config import ExpertConfig
     from distill.expert_files import expert_dir_for
     from distill.expert_policy import load_expert
-    from distill.expert_training import train_expert
-    from distill.fanout import Job, run_jobs, summarise
+    from distill.expert_training import expert_jobs
+    from distill.fanout import run_jobs, summarise
 
     steps = max(2048, int(config.expert_steps * config.scale) // 2048 * 2048)
     expert_config = ExpertConfig(
@@ -140,20 +140,9 @@ def _experts(folder: Path, library: str, config: QuickstartConfig) -> list[dict]
         eval_episodes=20,
         checkpoint_every=max(2048, steps // 4),
         residual_actions=config.residual_actions,
-        n_envs=1,
-        subprocess_envs=False,
-        torch_threads=1,
         seed=config.seed,
     )
-    jobs = [
-        Job(
-            name=snippet,
-            function=train_expert,
-            kwargs={"snippet": snippet, "out": folder, "config": expert_config, "clips": library, "progress": False},
-            done=expert_dir_for(folder, snippet).is_done(),
-        )
-        for snippet in config.expert_snippets
-    ]
+    jobs = expert_jobs(list(config.expert_snippets), folder, expert_config, library)
     print(f"\ntraining {len(jobs)} experts, {steps} steps each ({sum(j.done for j in jobs)} already done)")
     reports = run_jobs(jobs, workers=config.workers)
     print(summarise(reports))

@@ -8,7 +8,7 @@ on tracking data sees identical inputs in any downstream task.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 
 import mujoco
 import numpy as np
@@ -47,6 +47,9 @@ EXTRA_PROPRIOCEPTION: dict[str, int] = {
 """dm_control's remaining walker observables (MoCapAct's ``log_all_proprios``):
 components of the gyro and velocimeter, the pelvis pose in the world, the head
 height and the pelvis subtree's horizontal velocity (needs ``mj_subtreeVel``)."""
+
+ALL_PROPRIOCEPTION: dict[str, int] = {**PROPRIOCEPTION, **EXTRA_PROPRIOCEPTION}
+"""Every walker observable :class:`Proprioception` reads, with its size."""
 
 SUBTREE_VELOCITY_KEYS = frozenset({"walker/torso_xvel", "walker/torso_yvel"})
 """Observables that read ``subtree_linvel`` (the environment must call ``mj_subtreeVel``)."""
@@ -97,11 +100,7 @@ OBSERVABLE_SETS: dict[str, tuple[str, ...]] = {
     "gpt": (*DECODER, "walker/body_height"),
     "full": (*PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS),
     "rollout": tuple(
-        sorted(
-            k
-            for k in (*PROPRIOCEPTION, *EXTRA_PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS)
-            if k != "walker/clip_id"
-        )
+        sorted(k for k in (*ALL_PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS) if k != "walker/clip_id")
     ),
 }
 """Named observable sets: the seed's expert (B.1.2), encoder and decoder (B.2),
@@ -175,7 +174,7 @@ class Proprioception:
             "walker/veloc_strafe": lambda d: d.sensordata[walker.sensor_velocimeter][1:2].copy(),
             "walker/veloc_up": lambda d: d.sensordata[walker.sensor_velocimeter][2:3].copy(),
         }
-        assert set(self._readers) == set(PROPRIOCEPTION) | set(EXTRA_PROPRIOCEPTION)
+        assert self._readers.keys() == ALL_PROPRIOCEPTION.keys()
 
     def _appendages(self, data: mujoco.MjData) -> np.ndarray:
         relative = data.xpos[self._walker.appendage_bodies] - data.xpos[self._root]
@@ -185,23 +184,20 @@ class Proprioception:
         """One observable as a flat float64 array."""
         return self._readers[key](data)
 
-    def read_all(self, data: mujoco.MjData, keys: Sequence[str]) -> dict[str, np.ndarray]:
+    def read_all(self, data: mujoco.MjData, keys: Iterable[str]) -> dict[str, np.ndarray]:
         """Several observables (only proprioceptive keys)."""
         return {k: self._readers[k](data) for k in keys}
 
 
 def observation_sizes(keys: Sequence[str], ref_steps: Sequence[int] | np.ndarray = ()) -> dict[str, int]:
     """Size of each observable; reference observables scale with ``len(ref_steps)``."""
+    fixed = {**ALL_PROPRIOCEPTION, **TRACKING_EXTRAS}
     sizes = {}
     for key in keys:
-        if key in PROPRIOCEPTION:
-            sizes[key] = PROPRIOCEPTION[key]
-        elif key in EXTRA_PROPRIOCEPTION:
-            sizes[key] = EXTRA_PROPRIOCEPTION[key]
+        if key in fixed:
+            sizes[key] = fixed[key]
         elif key in REFERENCE_PER_STEP:
             sizes[key] = REFERENCE_PER_STEP[key] * len(ref_steps)
-        elif key in TRACKING_EXTRAS:
-            sizes[key] = TRACKING_EXTRAS[key]
         else:
             raise KeyError(f"unknown observable {key!r}")
     return sizes

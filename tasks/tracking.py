@@ -36,8 +36,7 @@ from tasks.clip_format import ClipFileError, open_clip_file, read_clip_from
 from tasks.clips import SnippetId, parse_snippet_id, resolve_clip_file
 from tasks.geometry import quat_diff, quat_to_axisangle
 from tasks.observables import (
-    EXTRA_PROPRIOCEPTION,
-    PROPRIOCEPTION,
+    ALL_PROPRIOCEPTION,
     REFERENCE_PER_STEP,
     SUBTREE_VELOCITY_KEYS,
     TRACKING_EXTRAS,
@@ -127,10 +126,10 @@ class ClipTrackingEnv(gym.Env):
         self._proprioception = Proprioception(self.walker)
         self._ref_steps = np.sort(np.asarray(config.ref_steps, dtype=np.int64))
 
-        available = (*PROPRIOCEPTION, *EXTRA_PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS)
+        available = (*ALL_PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS)
         self.observation_keys = resolve_observables(config.observables, available)
         self._key_set = frozenset(self.observation_keys)
-        self._proprio_keys = [k for k in self.observation_keys if k in PROPRIOCEPTION or k in EXTRA_PROPRIOCEPTION]
+        self._proprio_keys = [k for k in self.observation_keys if k in ALL_PROPRIOCEPTION]
         self._needs_subtree_velocity = bool(self._key_set & SUBTREE_VELOCITY_KEYS)
         sizes = observation_sizes(self.observation_keys, self._ref_steps)
         self.observation_space = gym.spaces.Dict(
@@ -284,9 +283,7 @@ class ClipTrackingEnv(gym.Env):
         """Applies joint position targets for one 0.03 s control step."""
         if not self._episode_active:
             raise RuntimeError("the episode has ended (or never started): call reset() first")
-        action = checked_action(action, self.walker.num_joints)
-        if self.config.residual_actions:
-            action = np.clip(action + self.reference_actuation(), -1.0, 1.0)
+        action = self.absolute_action(checked_action(action, self.walker.num_joints))
         if self.config.action_noise > 0:
             action = np.clip(action + self.np_random.normal(0.0, self.config.action_noise, action.shape), -1.0, 1.0)
         diverged = control_step(self._model, self._data, action, acceleration_current=self._episode_length > 0)
@@ -328,6 +325,16 @@ class ClipTrackingEnv(gym.Env):
             self._episode_active = False
             info.update(self._episode_summary())
         return observation, reward, terminated, truncated, info
+
+    def absolute_action(self, action: np.ndarray) -> np.ndarray:
+        """The joint targets an action stands for at this step.
+
+        Absolute actions are returned as they are; with ``residual_actions`` the
+        reference's next pose plus ``action``, clipped to [-1, 1].
+        """
+        if not self.config.residual_actions:
+            return action
+        return np.clip(action + self.reference_actuation(), -1.0, 1.0)
 
     def reference_actuation(self) -> np.ndarray:
         """Actions whose position targets are the reference's next pose (the playback controller)."""

@@ -17,8 +17,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from tasks.observables import EXTRA_PROPRIOCEPTION
 from tasks.walker import CONTROL_TIMESTEP, WalkerModel
 from tasks.walker_task import WalkerTaskEnv
+
+VELOCITY_OBSERVABLES = ("walker/torso_xvel", "walker/torso_yvel")
+"""The walker's horizontal centre-of-mass velocity, observed and rewarded."""
 
 
 def reward(v: np.ndarray, v_target: np.ndarray, eta: float = 0.75, k: float = 7.0) -> float:
@@ -77,7 +81,8 @@ class VelocityControlEnv(WalkerTaskEnv):
         self.config = config = config or VelocityControlConfig()
         if config.max_speed < 0 or config.eta <= 0 or config.command_seconds <= 0:
             raise ValueError("need max_speed >= 0, eta > 0 and command_seconds > 0")
-        super().__init__({"walker/torso_xvel": 1, "walker/torso_yvel": 1, "target_obs": 4}, config.max_steps, walker)
+        velocity_sizes = {k: EXTRA_PROPRIOCEPTION[k] for k in VELOCITY_OBSERVABLES}
+        super().__init__({**velocity_sizes, "target_obs": 4}, config.max_steps, walker)
         self._command_steps = max(1, round(config.command_seconds / CONTROL_TIMESTEP))
         self._speed = 0.0
         self._heading = 0.0
@@ -90,7 +95,7 @@ class VelocityControlEnv(WalkerTaskEnv):
 
     def torso_velocity(self) -> np.ndarray:
         """The walker's horizontal centre-of-mass velocity (2,), m/s."""
-        return self.data.subtree_linvel[self.walker.root_body, :2].copy()
+        return np.concatenate(list(self._proprioception.read_all(self.data, VELOCITY_OBSERVABLES).values()))
 
     def _new_command(self) -> None:
         self._speed = float(self.np_random.uniform(0.0, self.config.max_speed))
@@ -111,10 +116,7 @@ class VelocityControlEnv(WalkerTaskEnv):
         return value, False, {"target_velocity": self.target_velocity}
 
     def _task_observation(self) -> dict[str, np.ndarray]:
-        velocity = self.torso_velocity()
+        out = self._proprioception.read_all(self.data, VELOCITY_OBSERVABLES)
         phase = self._command_age / self._command_steps
-        return {
-            "walker/torso_xvel": velocity[0:1],
-            "walker/torso_yvel": velocity[1:2],
-            "target_obs": np.array([self._speed, np.sin(self._heading), np.cos(self._heading), phase]),
-        }
+        out["target_obs"] = np.array([self._speed, np.sin(self._heading), np.cos(self._heading), phase])
+        return out

@@ -128,7 +128,7 @@ class WalkerTaskEnv(gym.Env):
         return self._observation(), float(reward), terminated, truncated, info
 
     def _observation(self) -> dict[str, np.ndarray]:
-        out = self._proprioception.read_all(self._data, tuple(PROPRIOCEPTION))
+        out = self._proprioception.read_all(self._data, PROPRIOCEPTION)
         out.update(self._task_observation())
         return out
 
