@@ -1,4 +1,4 @@
-"""Command-line subcommands of ``distill``: experts and rollouts."""
+"""Command-line subcommands of ``distill``: experts, rollouts, distillation."""
 
 from __future__ import annotations
 
@@ -10,7 +10,11 @@ from pathlib import Path
 
 from distill.evaluation import EvaluationConfig
 from distill.expert_config import ExpertConfig
+from distill.npmp import NpmpConfig
+from distill.npmp_evaluation import PolicyEvaluationConfig
 from distill.rollouts import RolloutConfig
+from distill.sampler import SamplerConfig
+from distill.trainer import TrainerConfig
 from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args
 
 
@@ -55,6 +59,27 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     rollout.add_argument("--ray", default=None, metavar="ADDRESS", help="run the clips on a Ray cluster")
     add_dataclass_arguments(rollout, RolloutConfig)
     rollout.set_defaults(handler=_rollout)
+
+    distill = subparsers.add_parser("distill", help="multi-clip policy: train (writes the decoder file), evaluate")
+    distill_commands = distill.add_subparsers(dest="distill_command", required=True, metavar="COMMAND")
+    train_npmp = distill_commands.add_parser(
+        "train", help="distill the rollout dataset into the multi-clip policy (torchrun for many GPUs)"
+    )
+    train_npmp.add_argument("--data", type=Path, required=True, help="rollout dataset folder")
+    train_npmp.add_argument("--out", type=Path, required=True, help="output folder (decoder.safetensors lands here)")
+    add_dataclass_arguments(train_npmp, TrainerConfig)
+    add_dataclass_arguments(train_npmp, NpmpConfig)
+    add_dataclass_arguments(train_npmp, SamplerConfig, exclude=("normalize_observations", "actions"))
+    train_npmp.set_defaults(handler=_distill_train, window=30, weighting="rwr")
+
+    evaluate_npmp = distill_commands.add_parser("eval", help="roll the multi-clip policy out on snippets or clips")
+    evaluate_npmp.add_argument("policy", type=Path, help="policy.safetensors (or the distillation folder)")
+    evaluate_npmp.add_argument("--data", type=Path, default=None, help="rollout dataset: its snippets and experts")
+    evaluate_npmp.add_argument("--snippets", nargs="+", default=None, help="snippet or clip ids (default: the data's)")
+    evaluate_npmp.add_argument("--clips", default=None)
+    evaluate_npmp.add_argument("--json", type=Path, default=None, help="write the results here")
+    add_dataclass_arguments(evaluate_npmp, PolicyEvaluationConfig)
+    evaluate_npmp.set_defaults(handler=_distill_eval)
 
 
 def _expert_config(args: argparse.Namespace, **fixed) -> ExpertConfig:
@@ -137,3 +162,57 @@ def _rollout(args: argparse.Namespace) -> None:
     print(summarise(reports))
     if any(r.status == "failed" for r in reports):
         sys.exit(1)
+
+
+def _distill_train(args: argparse.Namespace) -> None:
+    from distill.npmp_training import train_npmp
+
+    result = train_npmp(
+        args.data,
+        args.out,
+        dataclass_from_args(NpmpConfig, args),
+        dataclass_from_args(TrainerConfig, args),
+        dataclass_from_args(SamplerConfig, args, normalize_observations=True),
+    )
+    print(
+        f"distilled {result.outcome.steps} steps (final loss {result.outcome.final_loss:.4g}); "
+        f"decoder file: {result.decoder}; multi-clip policy: {result.policy}"
+    )
+
+
+def _distill_eval(args: argparse.Namespace) -> None:
+    from distill.dataset import RolloutDataset
+    from distill.npmp import load_policy
+    from distill.npmp_evaluation import evaluate_multi_clip, fraction_of_experts
+    from distill.npmp_training import POLICY_FILE
+
+    config = dataclass_from_args(PolicyEvaluationConfig, args)
+    path = args.policy / POLICY_FILE if args.policy.is_dir() else args.policy
+    policy = load_policy(path)
+    experts = {}
+    if args.data is not None:
+        dataset = RolloutDataset(args.data)
+        experts = dataset.expert_metrics(config.init)
+    snippets = args.snippets or sorted(experts)
+    if not snippets:
+        raise ValueError("name --snippets (snippet or clip ids) or give --data to evaluate the dataset's snippets")
+    results = evaluate_multi_clip(policy, snippets, config, clips=args.clips, progress=True)
+    print(f"{'snippet':<28}{'norm. reward':>14}{'norm. length':>14}{'expert reward':>15}{'expert length':>15}")
+    for snippet, row in results.items():
+        expert = experts.get(snippet, {})
+        reward, length = expert.get("normalized_reward", float("nan")), expert.get("normalized_length", float("nan"))
+        print(
+            f"{snippet:<28}{row['normalized_reward']:>14.3f}{row['normalized_length']:>14.3f}{reward:>15.3f}{length:>15.3f}"
+        )
+    summary = fraction_of_experts(results, experts)
+    print(
+        f"fraction of the experts over {summary['snippets']} snippets: reward {summary['normalized_reward']:.3f}, "
+        f"length {summary['normalized_length']:.3f}"
+    )
+    if args.json:
+        from tasks.atomic import write_json
+
+        write_json(
+            args.json,
+            {"config": dataclasses.asdict(config), "policy": results, "experts": experts, "fraction": summary},
+        )

@@ -200,6 +200,26 @@ class RolloutDataset:
                 out[snippet] = float(np.mean([np.mean(start), np.mean(randoms)]))
         return out
 
+    def expert_metrics(self, init: str = "random") -> dict[str, dict[str, float]]:
+        """The experts' mean normalised reward and length per snippet, as recorded in the files.
+
+        Args:
+            init: ``random`` (the RSI episodes) or ``start`` (episodes from the snippet start).
+        """
+        if init not in ("random", "start"):
+            raise ValueError("init must be 'random' or 'start'")
+        group = schema.RSI_METRICS if init == "random" else schema.START_METRICS
+        out = {}
+        for number, layout in enumerate(self.layouts):
+            f, where = self.file(number), str(self.files[number])
+            for snippet in layout.snippets:
+                read = lambda name: float(np.mean(schema.dataset_at(f, f"{snippet}/{group}/{name}", where)[...]))  # noqa: B023, E731
+                out[snippet] = {
+                    "normalized_reward": read("norm_episode_returns"),
+                    "normalized_length": read("norm_episode_lengths"),
+                }
+        return out
+
     def statistics(self) -> Statistics:
         """Statistics pooled over files, weighted by each file's count."""
         totals: dict[str, np.ndarray] = {}

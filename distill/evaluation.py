@@ -1,7 +1,7 @@
 """Evaluating snippet experts: MoCapAct's normalised episode reward and length.
 
 Episodes run in several tracking environments in lockstep (see
-:mod:`distill.lockstep`) with one batched policy call per step.
+:mod:`tasks.lockstep`) with one batched policy call per step.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from distill.expert_policy import ExpertPolicy
-from distill.lockstep import Lockstep
+from tasks.lockstep import Lockstep
 from tasks.tracking import ClipTrackingEnv, TrackingConfig
 from tasks.walker import WalkerModel, build_walker
 

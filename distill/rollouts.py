@@ -26,10 +26,10 @@ from distill import dataset_schema as schema
 from distill.expert_files import find_experts
 from distill.expert_policy import ExpertOutput, load_expert
 from distill.fanout import Job
-from distill.lockstep import Lockstep
 from mocap_hierarchy import __version__
 from tasks.atomic import atomic_path
 from tasks.clips import parse_snippet_id
+from tasks.lockstep import Lockstep
 from tasks.observables import OBSERVABLE_SETS, observation_sizes
 from tasks.tracking import ClipTrackingEnv, TrackingConfig
 from tasks.walker import WalkerModel, build_walker

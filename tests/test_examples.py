@@ -8,3 +8,22 @@ def test_tour_runs(clip_library, capsys):
     runpy.run_path(str(EXAMPLES / "tour_of_the_tasks.py"), run_name="__main__")
     out = capsys.readouterr().out
     assert "velocity_control" in out and "normalised reward" in out
+
+
+def test_new_task_example_trains_on_a_decoder_file(clip_library, tmp_path, capsys):
+    import numpy as np
+    import torch
+
+    from hierarchy import DecoderSpec, LatentDecoder
+    from tasks.observables import DECODER, PROPRIOCEPTION
+
+    source = EXAMPLES / "new_task.py"
+    assert len(source.read_text().splitlines()) < 100
+    torch.manual_seed(0)
+    spec = DecoderSpec({k: PROPRIOCEPTION[k] for k in DECODER}, latent_size=4, hidden_layers=(16,))
+    decoder = LatentDecoder(spec, np.zeros(spec.observation_size), np.ones(spec.observation_size))
+    path = decoder.save(tmp_path / "decoder.safetensors")
+    example = runpy.run_path(str(source), run_name="example")
+    score = example["main"](["--decoder", str(path), "--steps", "64", "--n-envs", "2", "--hidden", "16"])
+    assert -1.0 <= score <= 1.0
+    assert "mean facing reward after 64 steps" in capsys.readouterr().out

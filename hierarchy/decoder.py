@@ -1,0 +1,346 @@
+"""The frozen low-level decoder: the one contract the library turns around.
+
+A :class:`LatentDecoder` maps a proprioceptive observation ``s`` and a latent
+``z`` to a humanoid action ``a = pi_dec(s, z)``:
+
+* ``s``: the walker observables listed in :attr:`DecoderSpec.observation_sizes`
+  (dm_control keys such as ``walker/joints_pos``), raw as any task in ``tasks``
+  returns them; the decoder standardises them itself with the dataset
+  statistics it carries;
+* ``z``: a latent vector of :attr:`DecoderSpec.latent_size` (60) values; the
+  high-level policies in this library keep each element within
+  ``+-latent_bound`` (3);
+* ``a``: :attr:`DecoderSpec.action_size` (56) joint position targets of the
+  CMU humanoid's position actuators, within ``[action_low, action_high]``
+  (``[-1, 1]``; dm_control's normalised actuator range).
+
+The decoder is **frozen**: it is always in eval mode, none of its parameters
+requires a gradient, and :meth:`LatentDecoder.train` cannot switch it back.
+
+The file format (one ``.safetensors`` file, defined only here): tensors
+``net.*`` (the MLP), ``observation_mean`` and ``observation_std`` (float32),
+and a JSON document under the safetensors metadata key ``mocap_hierarchy``
+holding :class:`DecoderSpec` with the format name and schema version. Loading
+reads tensors and JSON only; no pickled code is ever run.
+"""
+
+from __future__ import annotations
+
+import datetime
+import itertools
+import json
+import os
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from safetensors import safe_open
+from safetensors.torch import save_file
+from torch import nn
+
+from tasks.atomic import atomic_path
+
+DECODER_FORMAT = "mocap_hierarchy.decoder"
+DECODER_SCHEMA_VERSION = 1
+METADATA_KEY = "mocap_hierarchy"
+"""Safetensors metadata key holding the JSON description."""
+
+ACTIVATIONS: dict[str, type[nn.Module]] = {"elu": nn.ELU, "relu": nn.ReLU, "tanh": nn.Tanh}
+"""Hidden-layer activations a decoder file may name."""
+
+
+class DecoderFileError(ValueError):
+    """A decoder file is missing, unreadable, or of another format or version."""
+
+
+class DecoderMismatchError(ValueError):
+    """A decoder does not fit an environment's observations."""
+
+
+@dataclass(frozen=True)
+class DecoderSpec:
+    """Everything about a decoder except its weights (the JSON part of the file).
+
+    Attributes:
+        observation_sizes: Observation keys in input order, with their sizes.
+        latent_size: Size of ``z``.
+        latent_bound: Per-element bound of ``z`` the decoder is meant to be driven within.
+        action_size: Size of the action.
+        action_low: Lower action bound (every element).
+        action_high: Upper action bound (every element).
+        hidden_layers: Hidden layer sizes of the MLP over ``[normalised s, z]``.
+        layer_norm: Each hidden layer is ``Linear -> LayerNorm -> activation``.
+        activation: Hidden activation, a key of :data:`ACTIVATIONS`.
+        squash: Output passes through ``tanh`` (then is scaled to the bounds).
+        walker: The dm_control walker the decoder drives.
+        provenance: Where it came from: dataset, training steps, date, library version.
+    """
+
+    observation_sizes: dict[str, int]
+    latent_size: int = 60
+    latent_bound: float = 3.0
+    action_size: int = 56
+    action_low: float = -1.0
+    action_high: float = 1.0
+    hidden_layers: tuple[int, ...] = (1024, 1024, 1024)
+    layer_norm: bool = True
+    activation: str = "elu"
+    squash: bool = False
+    walker: str = "CMUHumanoidPositionControlledV2020"
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.activation not in ACTIVATIONS:
+            raise DecoderFileError(f"unknown activation {self.activation!r}; known: {', '.join(ACTIVATIONS)}")
+        if self.latent_size < 1 or self.action_size < 1 or not self.observation_sizes:
+            raise DecoderFileError("a decoder needs observations, a latent and actions")
+        if self.action_low >= self.action_high:
+            raise DecoderFileError(f"action bounds [{self.action_low}, {self.action_high}] are empty")
+
+    @property
+    def observation_keys(self) -> tuple[str, ...]:
+        """Observation keys in input order."""
+        return tuple(self.observation_sizes)
+
+    @property
+    def observation_size(self) -> int:
+        """Length of the flat observation vector."""
+        return sum(self.observation_sizes.values())
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready dict with format marker and schema version."""
+        return {"format": DECODER_FORMAT, "schema_version": DECODER_SCHEMA_VERSION, **asdict(self)}
+
+    @classmethod
+    def from_json(cls, data: dict[str, Any], where: str) -> DecoderSpec:
+        """Parses :meth:`to_json` output; errors name the file."""
+        if data.get("format") != DECODER_FORMAT:
+            raise DecoderFileError(f"{where} is not a mocap-hierarchy decoder file (format {data.get('format')!r})")
+        version = data.get("schema_version", 0)
+        if version > DECODER_SCHEMA_VERSION:
+            raise DecoderFileError(
+                f"{where} has decoder schema version {version}; this library reads up to "
+                f"{DECODER_SCHEMA_VERSION}: upgrade mocap-hierarchy"
+            )
+        fields = {k: v for k, v in data.items() if k not in ("format", "schema_version")}
+        fields["hidden_layers"] = tuple(fields.get("hidden_layers", ()))
+        fields["observation_sizes"] = {str(k): int(v) for k, v in fields.get("observation_sizes", {}).items()}
+        try:
+            return cls(**fields)
+        except TypeError as error:
+            raise DecoderFileError(f"{where}: {error}") from None
+
+
+def decoder_network(spec: DecoderSpec) -> nn.Sequential:
+    """The decoder's MLP over ``[normalised observation, z]`` (untrained).
+
+    Producers (the distillation trainer) train this same network and hand its
+    weights to :class:`LatentDecoder`, so the architecture lives only here.
+    """
+    layers: list[nn.Module] = []
+    sizes = [spec.observation_size + spec.latent_size, *spec.hidden_layers]
+    for size_in, size_out in itertools.pairwise(sizes):
+        layers.append(nn.Linear(size_in, size_out))
+        if spec.layer_norm:
+            layers.append(nn.LayerNorm(size_out))
+        layers.append(ACTIVATIONS[spec.activation]())
+    layers.append(nn.Linear(sizes[-1], spec.action_size))
+    return nn.Sequential(*layers)
+
+
+class LatentDecoder(nn.Module):
+    """A frozen low-level controller ``(observation, z) -> action`` (see the module docstring).
+
+    Args:
+        spec: Architecture, inputs and outputs.
+        observation_mean: ``(observation_size,)`` mean of the flat observation.
+        observation_std: ``(observation_size,)`` standard deviation (already
+            including any epsilon); observations are standardised with both.
+        state_dict: Weights of :func:`decoder_network` (random if omitted).
+    """
+
+    observation_mean: torch.Tensor
+    observation_std: torch.Tensor
+
+    def __init__(
+        self,
+        spec: DecoderSpec,
+        observation_mean: np.ndarray | torch.Tensor,
+        observation_std: np.ndarray | torch.Tensor,
+        state_dict: Mapping[str, torch.Tensor] | None = None,
+    ) -> None:
+        super().__init__()
+        self.spec = spec
+        self.net = decoder_network(spec)
+        mean = torch.as_tensor(np.asarray(observation_mean), dtype=torch.float32).reshape(-1)
+        std = torch.as_tensor(np.asarray(observation_std), dtype=torch.float32).reshape(-1)
+        for name, value in (("observation_mean", mean), ("observation_std", std)):
+            if value.shape != (spec.observation_size,):
+                raise DecoderFileError(
+                    f"{name} has {value.numel()} values; the observations have {spec.observation_size}"
+                )
+        if not torch.all(std > 0):
+            raise DecoderFileError("observation_std must be positive")
+        self.register_buffer("observation_mean", mean)
+        self.register_buffer("observation_std", std)
+        if state_dict is not None:
+            self.net.load_state_dict(dict(state_dict))
+        self.requires_grad_(False)
+        super().train(False)
+
+    # Frozen ------------------------------------------------------------------
+
+    def train(self, mode: bool = True) -> LatentDecoder:
+        """Stays in eval mode whatever ``mode`` says: the decoder is frozen."""
+        return super().train(False)
+
+    # Decoding ----------------------------------------------------------------
+
+    def forward(self, observation: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+        """Actions for a batch.
+
+        Args:
+            observation: ``(N, observation_size)`` raw flat observations (keys in
+                :attr:`DecoderSpec.observation_keys` order).
+            z: ``(N, latent_size)`` latents.
+
+        Returns:
+            ``(N, action_size)`` actions within the bounds.
+        """
+        normalised = (observation - self.observation_mean) / self.observation_std
+        out = self.net(torch.cat([normalised, z], dim=-1))
+        low, high = self.spec.action_low, self.spec.action_high
+        if self.spec.squash:
+            return low + (torch.tanh(out) + 1.0) * (0.5 * (high - low))
+        return out.clamp(low, high)
+
+    def flatten(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Concatenates the decoder's observation keys: ``(N, observation_size)`` (or ``(observation_size,)``).
+
+        Raises:
+            DecoderMismatchError: A key is missing or has the wrong size.
+        """
+        parts = []
+        batched = None
+        for key, size in self.spec.observation_sizes.items():
+            if key not in observations:
+                raise DecoderMismatchError(f"the decoder needs observation {key!r}, which is missing")
+            value = np.asarray(observations[key], dtype=np.float32)
+            if value.shape[-1:] != (size,):
+                raise DecoderMismatchError(f"observation {key!r} has shape {value.shape}; the decoder expects {size}")
+            batched = value.ndim > 1 if batched is None else batched
+            parts.append(value.reshape(-1, size))
+        flat = np.concatenate(parts, axis=1)
+        return flat if batched else flat[0]
+
+    @torch.inference_mode()
+    def decode(self, observations: Mapping[str, np.ndarray], z: np.ndarray) -> np.ndarray:
+        """NumPy convenience: actions for one observation dict or a batched one.
+
+        Args:
+            observations: ``{key: (size,)}`` or ``{key: (N, size)}``.
+            z: ``(latent_size,)`` or ``(N, latent_size)``.
+
+        Returns:
+            ``(action_size,)`` or ``(N, action_size)`` float64 actions.
+        """
+        flat = self.flatten(observations)
+        z = np.asarray(z, dtype=np.float32)
+        if z.shape[-1:] != (self.spec.latent_size,):
+            raise DecoderMismatchError(f"z has shape {z.shape}; the decoder's latent size is {self.spec.latent_size}")
+        single = flat.ndim == 1
+        out = self(torch.from_numpy(flat.reshape(-1, flat.shape[-1])), torch.from_numpy(z.reshape(-1, z.shape[-1])))
+        actions = out.double().numpy()
+        return actions[0] if single else actions
+
+    def check_observations(self, sizes: Mapping[str, int]) -> None:
+        """Checks that an environment provides every observation the decoder reads.
+
+        Args:
+            sizes: The environment's observation keys and their sizes.
+
+        Raises:
+            DecoderMismatchError: Naming the missing keys and those of another size.
+        """
+        missing = [k for k in self.spec.observation_sizes if k not in sizes]
+        wrong = [
+            f"{k} (decoder {n}, environment {sizes[k]})"
+            for k, n in self.spec.observation_sizes.items()
+            if k in sizes and sizes[k] != n
+        ]
+        if missing or wrong:
+            problems = []
+            if missing:
+                problems.append(f"missing observations {missing}")
+            if wrong:
+                problems.append(f"observations of another size: {', '.join(wrong)}")
+            raise DecoderMismatchError(
+                "the decoder does not fit this environment: " + "; ".join(problems) + ". Use a decoder trained on "
+                "observables this task provides (`mocap-hierarchy decoder info FILE` lists them)"
+            )
+
+    # Files -------------------------------------------------------------------
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Writes the decoder file atomically (see the module docstring); returns the path."""
+        tensors = {f"net.{k}": v.detach().contiguous().cpu() for k, v in self.net.state_dict().items()}
+        tensors["observation_mean"] = self.observation_mean.detach().contiguous().cpu()
+        tensors["observation_std"] = self.observation_std.detach().contiguous().cpu()
+        metadata = {METADATA_KEY: json.dumps(self.spec.to_json())}
+        with atomic_path(path) as temporary:
+            save_file(tensors, str(temporary), metadata=metadata)
+        return Path(path)
+
+
+def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") -> LatentDecoder:
+    """Loads a decoder file (tensors and JSON only; nothing is unpickled).
+
+    Args:
+        path: A file written by :meth:`LatentDecoder.save`.
+        device: Where to put the weights.
+
+    Raises:
+        DecoderFileError: Missing file, another format, a newer schema, or corrupt content.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DecoderFileError(
+            f"decoder file {path} does not exist; `mocap-hierarchy distill train` writes one, "
+            "`mocap-hierarchy decoder import-mocapact` converts MoCapAct's"
+        )
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            metadata = f.metadata() or {}
+            tensors = {k: f.get_tensor(k) for k in f.keys()}  # noqa: SIM118 (safe_open is not a dict)
+    except Exception as error:  # safetensors raises its own error types for corrupt headers
+        raise DecoderFileError(f"{path} is not a readable safetensors file ({error})") from None
+    if METADATA_KEY not in metadata:
+        raise DecoderFileError(f"{path} is a safetensors file without a mocap-hierarchy decoder description")
+    try:
+        spec = DecoderSpec.from_json(json.loads(metadata[METADATA_KEY]), str(path))
+    except json.JSONDecodeError as error:
+        raise DecoderFileError(f"{path}: corrupt decoder description ({error})") from None
+    missing = [k for k in ("observation_mean", "observation_std") if k not in tensors]
+    if missing:
+        raise DecoderFileError(f"{path} lacks tensors {missing}")
+    state = {k.removeprefix("net."): v for k, v in tensors.items() if k.startswith("net.")}
+    decoder = LatentDecoder(spec, tensors["observation_mean"], tensors["observation_std"])
+    try:
+        decoder.net.load_state_dict(state)
+    except RuntimeError as error:
+        raise DecoderFileError(f"{path}: weights do not match the described architecture ({error})") from None
+    return decoder.to(device)
+
+
+def provenance(**facts: Any) -> dict[str, Any]:
+    """Provenance facts plus the date and library version."""
+    from mocap_hierarchy import __version__
+
+    return {
+        **facts,
+        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "library_version": __version__,
+    }

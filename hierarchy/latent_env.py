@@ -1,0 +1,179 @@
+"""The latent action space: any walker task driven through a frozen decoder.
+
+A high-level policy picks ``z`` in ``[-max_latent, max_latent]^latent_size``;
+the decoder turns ``(raw proprioceptive observation, z)`` into joint targets,
+which are clipped to the task's action bounds and applied. The observation
+the high-level policy sees is the task's own, unchanged.
+
+Two forms with the same semantics:
+
+* :class:`LatentActionEnv` wraps one Gymnasium environment;
+* :class:`LatentActionVecEnv` wraps a stable-baselines3 ``VecEnv`` and decodes
+  all its environments in one batched call (put ``VecNormalize`` *above* it,
+  so the decoder reads raw observations).
+
+With ``steps_per_latent = k > 1`` one high-level action holds for ``k``
+low-level steps and their rewards are summed; the decoder still runs every
+low-level step on the current observation.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import gymnasium as gym
+import numpy as np
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
+
+from hierarchy.decoder import DecoderMismatchError, LatentDecoder
+
+
+def observation_sizes(space: gym.Space) -> dict[str, int]:
+    """Keys and flat sizes of a ``Dict`` observation space.
+
+    Raises:
+        DecoderMismatchError: The space is not a ``Dict`` of boxes.
+    """
+    if not isinstance(space, gym.spaces.Dict):
+        raise DecoderMismatchError(
+            f"a decoder reads named walker observations; this environment's observation space is {space}"
+        )
+    return {k: int(np.prod(s.shape)) for k, s in space.spaces.items() if s.shape is not None}
+
+
+def _latent_space(decoder: LatentDecoder, max_latent: float) -> gym.spaces.Box:
+    if max_latent <= 0:
+        raise ValueError("max_latent must be positive")
+    size = decoder.spec.latent_size
+    return gym.spaces.Box(-max_latent, max_latent, (size,), np.float32)
+
+
+def _checked_latent(z: np.ndarray, space: gym.spaces.Box) -> np.ndarray:
+    z = np.asarray(z, dtype=np.float32)
+    if z.shape[-1:] != space.shape:
+        raise ValueError(f"latent action has shape {z.shape}; expected (..., {space.shape[0]})")
+    if not np.all(np.isfinite(z)):
+        raise ValueError("latent action contains NaN or infinity; check the high-level policy's outputs")
+    return np.clip(z, space.low, space.high)
+
+
+def _action_bounds(decoder: LatentDecoder, space: gym.Space) -> tuple[np.ndarray, np.ndarray]:
+    if not isinstance(space, gym.spaces.Box) or space.shape != (decoder.spec.action_size,):
+        raise DecoderMismatchError(
+            f"the decoder produces {decoder.spec.action_size} actions; the environment's action space is {space}"
+        )
+    return space.low.astype(np.float64), space.high.astype(np.float64)
+
+
+class LatentActionEnv(gym.Wrapper):
+    """One environment with a latent action space (see the module docstring).
+
+    Args:
+        env: A walker task whose observations contain the decoder's keys.
+        decoder: The frozen decoder.
+        max_latent: Per-element bound of ``z`` (the seed's 3).
+        steps_per_latent: Low-level steps per high-level action (the seed's 1).
+
+    Raises:
+        DecoderMismatchError: The decoder's observations or actions do not fit ``env``.
+    """
+
+    def __init__(
+        self, env: gym.Env, decoder: LatentDecoder, max_latent: float = 3.0, steps_per_latent: int = 1
+    ) -> None:
+        super().__init__(env)
+        if steps_per_latent < 1:
+            raise ValueError("steps_per_latent must be at least 1")
+        decoder.check_observations(observation_sizes(env.observation_space))
+        self._low, self._high = _action_bounds(decoder, env.action_space)
+        self.decoder = decoder
+        self.steps_per_latent = steps_per_latent
+        self.action_space = _latent_space(decoder, max_latent)
+        self._observation: dict[str, np.ndarray] = {}
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Resets the wrapped environment."""
+        observation, info = self.env.reset(seed=seed, options=options)
+        self._observation = observation
+        return observation, info
+
+    def step(self, action):
+        """Decodes ``z`` into joint targets and steps ``steps_per_latent`` times.
+
+        ``info`` gains ``low_level_action`` (the last joint targets applied) and ``latent``.
+        """
+        if not self._observation:
+            raise RuntimeError("call reset() before step()")
+        assert isinstance(self.action_space, gym.spaces.Box)
+        z = _checked_latent(action, self.action_space)
+        total = 0.0
+        for _ in range(self.steps_per_latent):
+            low_level = np.clip(self.decoder.decode(self._observation, z), self._low, self._high)
+            observation, reward, terminated, truncated, info = self.env.step(low_level)
+            self._observation = observation
+            total += float(reward)
+            if terminated or truncated:
+                break
+        info = {**info, "low_level_action": low_level, "latent": z}
+        return observation, total, terminated, truncated, info
+
+
+class LatentActionVecEnv(VecEnvWrapper):
+    """A stable-baselines3 ``VecEnv`` with a latent action space, decoded in one batch.
+
+    Args:
+        venv: Vectorised walker tasks (raw observations: not normalised).
+        decoder: The frozen decoder.
+        max_latent: Per-element bound of ``z``.
+        steps_per_latent: Low-level steps per high-level action. With ``k > 1``
+            an environment whose episode ends within the ``k`` steps is reported
+            done; its next episode has then already run the remaining steps
+            under the old latent (the VecEnv resets it automatically) and those
+            rewards are not counted.
+    """
+
+    def __init__(
+        self, venv: VecEnv, decoder: LatentDecoder, max_latent: float = 3.0, steps_per_latent: int = 1
+    ) -> None:
+        if steps_per_latent < 1:
+            raise ValueError("steps_per_latent must be at least 1")
+        decoder.check_observations(observation_sizes(venv.observation_space))
+        self._low, self._high = _action_bounds(decoder, venv.action_space)
+        super().__init__(venv, action_space=_latent_space(decoder, max_latent))
+        self.decoder = decoder
+        self.steps_per_latent = steps_per_latent
+        self._observation: Mapping[str, np.ndarray] | None = None
+        self._latent: np.ndarray | None = None
+
+    def reset(self):
+        """Resets every environment."""
+        observation = self.venv.reset()
+        assert isinstance(observation, dict)
+        self._observation = observation
+        return observation
+
+    def step_async(self, actions: np.ndarray) -> None:
+        """Stores the latents ``(num_envs, latent_size)`` for :meth:`step_wait`."""
+        assert isinstance(self.action_space, gym.spaces.Box)
+        self._latent = _checked_latent(actions, self.action_space)
+
+    def step_wait(self):
+        """Decodes and steps; returns SB3's ``(observations, rewards, dones, infos)``."""
+        if self._observation is None or self._latent is None:
+            raise RuntimeError("call reset() and step_async() before step_wait()")
+        totals = np.zeros(self.num_envs, dtype=np.float32)
+        ended = np.zeros(self.num_envs, dtype=bool)
+        final_infos: list[dict] = [{} for _ in range(self.num_envs)]
+        for _ in range(self.steps_per_latent):
+            low_level = np.clip(self.decoder.decode(self._observation, self._latent), self._low, self._high)
+            observation, rewards, dones, infos = self.venv.step(low_level)
+            assert isinstance(observation, dict)
+            self._observation = observation
+            live = ~ended
+            totals[live] += rewards[live]
+            for i in np.flatnonzero(live):
+                final_infos[i] = infos[i]
+            ended |= dones
+            if ended.all():
+                break
+        return self._observation, totals, ended, final_infos

@@ -1,0 +1,182 @@
+"""A trained high-level (task) policy as a frozen module, stored without pickle.
+
+stable-baselines3 saves policies as pickles; :class:`TaskPolicy` keeps what
+acting needs (the ``VecNormalize`` observation statistics, the actor MLP and
+its action layer, the action bounds) in one safetensors file with a JSON
+description, so evaluating or recording a policy from someone else runs no code
+from their files. Its deterministic actions equal SB3's ``predict(...,
+deterministic=True)`` on the same (normalised) observations.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from safetensors import safe_open
+from safetensors.torch import save_file
+from torch import nn
+
+from tasks.atomic import atomic_path
+
+TASK_POLICY_FORMAT = "mocap_hierarchy.task_policy"
+TASK_POLICY_SCHEMA_VERSION = 1
+_METADATA_KEY = "mocap_hierarchy"
+
+
+@dataclass(frozen=True)
+class TaskPolicySpec:
+    """Everything but the weights.
+
+    Attributes:
+        task: Registered task name.
+        task_overrides: Config fields of the task that differ from its defaults.
+        observation_sizes: Observation keys in the policy's input order, with sizes.
+        hidden_layers: Hidden sizes of the tanh actor MLP.
+        action_low: Lower bound of the policy's actions (latent or joint targets).
+        action_high: Upper bound.
+        obs_clip: Normalised observations are clipped to +-this.
+        obs_epsilon: Added to the variance before normalising.
+        decoder: ``{"path", "sha256", "steps_per_latent"}`` of the decoder the
+            policy drives, or None for a policy acting on joint targets directly.
+        provenance: Training facts (steps, date, library version).
+    """
+
+    task: str
+    task_overrides: dict[str, Any]
+    observation_sizes: dict[str, int]
+    hidden_layers: tuple[int, ...]
+    action_low: float
+    action_high: float
+    obs_clip: float
+    obs_epsilon: float
+    decoder: dict[str, Any] | None = None
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+
+class TaskPolicy(nn.Module):
+    """Deterministic actions of a trained task policy (see the module docstring).
+
+    Args:
+        spec: Description.
+        obs_mean: Flat observation mean (input order).
+        obs_var: Flat observation variance.
+        action_size: Size of the action.
+    """
+
+    obs_mean: torch.Tensor
+    obs_var: torch.Tensor
+
+    def __init__(self, spec: TaskPolicySpec, obs_mean: np.ndarray, obs_var: np.ndarray, action_size: int) -> None:
+        super().__init__()
+        self.spec = spec
+        sizes = [sum(spec.observation_sizes.values()), *spec.hidden_layers]
+        layers: list[nn.Module] = []
+        for size_in, size_out in itertools.pairwise(sizes):
+            layers += [nn.Linear(size_in, size_out), nn.Tanh()]
+        self.policy_net = nn.Sequential(*layers)
+        self.action_net = nn.Linear(sizes[-1], action_size)
+        self.register_buffer("obs_mean", torch.as_tensor(obs_mean, dtype=torch.float64))
+        self.register_buffer("obs_var", torch.as_tensor(obs_var, dtype=torch.float64))
+        self.requires_grad_(False)
+        self.eval()
+
+    @torch.no_grad()
+    def act(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
+        """Mean actions ``(N, action_size)`` for raw batched observations ``{key: (N, size)}``."""
+        parts = []
+        for key, size in self.spec.observation_sizes.items():
+            if key not in observations:
+                raise KeyError(f"the policy needs observation {key!r}")
+            parts.append(np.asarray(observations[key], dtype=np.float64).reshape(-1, size))
+        flat = torch.from_numpy(np.concatenate(parts, axis=1))
+        normalised = (flat - self.obs_mean) / torch.sqrt(self.obs_var + self.spec.obs_epsilon)
+        features = normalised.clamp(-self.spec.obs_clip, self.spec.obs_clip).float()
+        actions = self.action_net(self.policy_net(features)).double().numpy()
+        return np.clip(actions, self.spec.action_low, self.spec.action_high)
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Writes the policy file atomically."""
+        tensors = {k: v.detach().contiguous() for k, v in self.state_dict().items()}
+        description = {"format": TASK_POLICY_FORMAT, "schema_version": TASK_POLICY_SCHEMA_VERSION, **asdict(self.spec)}
+        description["action_size"] = self.action_net.out_features
+        with atomic_path(path) as temporary:
+            save_file(tensors, str(temporary), metadata={_METADATA_KEY: json.dumps(description)})
+        return Path(path)
+
+
+def load_task_policy(path: str | os.PathLike) -> TaskPolicy:
+    """Reads a task policy file (tensors and JSON only).
+
+    Raises:
+        FileNotFoundError: No such file.
+        ValueError: Not a task policy file, or a newer schema.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"task policy file {path} does not exist (`mocap-hierarchy transfer train` writes it)")
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            description = json.loads((f.metadata() or {})[_METADATA_KEY])
+            tensors = {k: f.get_tensor(k) for k in f.keys()}  # noqa: SIM118 (safe_open is not a dict)
+    except Exception as error:
+        raise ValueError(f"{path} is not a readable task policy file ({error})") from None
+    if description.pop("format", None) != TASK_POLICY_FORMAT:
+        raise ValueError(f"{path} is not a task policy file")
+    if description.pop("schema_version", 0) > TASK_POLICY_SCHEMA_VERSION:
+        raise ValueError(f"{path} has a newer schema than this library reads: upgrade mocap-hierarchy")
+    action_size = int(description.pop("action_size"))
+    description["hidden_layers"] = tuple(description["hidden_layers"])
+    spec = TaskPolicySpec(**description)
+    policy = TaskPolicy(spec, tensors["obs_mean"].numpy(), tensors["obs_var"].numpy(), action_size)
+    policy.load_state_dict(tensors)
+    return policy
+
+
+def task_policy_from_sb3(model, vecnormalize, spec_fields: dict[str, Any]) -> TaskPolicy:
+    """Converts a stable-baselines3 PPO (``MultiInputPolicy``) and its ``VecNormalize``.
+
+    Args:
+        model: The trained PPO.
+        vecnormalize: Its observation normaliser (``norm_obs=True``), or None.
+        spec_fields: ``task``, ``task_overrides``, ``decoder``, ``provenance``.
+    """
+    space = model.observation_space
+    sizes = {k: int(np.prod(s.shape)) for k, s in space.spaces.items()}
+    if vecnormalize is not None and vecnormalize.norm_obs:
+        mean = np.concatenate([vecnormalize.obs_rms[k].mean.reshape(-1) for k in sizes])
+        var = np.concatenate([vecnormalize.obs_rms[k].var.reshape(-1) for k in sizes])
+        clip, epsilon = float(vecnormalize.clip_obs), float(vecnormalize.epsilon)
+    else:
+        total = sum(sizes.values())
+        mean, var, clip, epsilon = np.zeros(total), np.ones(total), float("inf"), 0.0
+    net_arch = model.policy.net_arch
+    layers = tuple(net_arch["pi"] if isinstance(net_arch, dict) else net_arch)
+    spec = TaskPolicySpec(
+        observation_sizes=sizes,
+        hidden_layers=layers,
+        action_low=float(model.action_space.low.min()),
+        action_high=float(model.action_space.high.max()),
+        obs_clip=clip,
+        obs_epsilon=epsilon,
+        **spec_fields,
+    )
+    policy = TaskPolicy(spec, mean, var, int(model.action_space.shape[0]))
+    source = model.policy.state_dict()
+    state = {}
+    for name in policy.state_dict():
+        if name.startswith("obs_"):
+            state[name] = getattr(policy, name)
+        elif name.startswith("policy_net."):
+            state[name] = source[f"mlp_extractor.{name}"].detach().cpu().float()
+        else:
+            state[name] = source[name].detach().cpu().float()
+    policy.load_state_dict(state)
+    return policy

@@ -1,0 +1,350 @@
+"""High-level training on any registered task, with or without a frozen decoder (seed B.3).
+
+``train_transfer("velocity_control", out, decoder="decoder.safetensors")``
+trains stable-baselines3 PPO in the decoder's latent space (initial standard
+deviation 2.5, latents within +-3); without a decoder the same PPO acts on
+joint targets directly (standard deviation 0.5, actions within +-1): the
+seed's baseline. The decoder stays frozen: it is never given to the optimiser
+(a test proves its weights are bit-identical after an update).
+
+Writes into ``out``: ``policy.safetensors`` (the pickle-free policy, see
+:mod:`hierarchy.task_policy`), ``progress.csv`` and ``tensorboard/`` (SB3's
+logs), ``transfer.json`` (settings and outcome) and, while training,
+``checkpoint/`` (SB3's own files, to resume an interrupted run).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from stable_baselines3.common.callbacks import BaseCallback
+from tqdm.auto import tqdm
+
+from hierarchy.decoder import LatentDecoder, load_decoder, provenance
+from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
+from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
+from tasks.atomic import atomic_path, write_json
+
+POLICY_FILE = "policy.safetensors"
+CHECKPOINT_DIR = "checkpoint"
+
+
+@dataclass(frozen=True)
+class TransferConfig:
+    """High-level PPO settings (defaults: the seed's Table 3).
+
+    Attributes:
+        total_steps: Environment steps in total (high-level steps).
+        n_envs: Parallel environments (actors).
+        steps_per_update: Environment steps per PPO update, over all environments.
+        epochs: PPO epochs per update.
+        minibatch_size: PPO minibatch size.
+        clip_range: PPO clipping parameter.
+        target_kl: KL threshold for early stopping of an update.
+        entropy_coefficient: Entropy bonus.
+        gae_lambda: GAE parameter.
+        gamma: Discount factor.
+        max_grad_norm: Gradient norm clipping value.
+        learning_rate: Adam step size.
+        hidden_layers: Hidden sizes of the policy and value MLPs (tanh).
+        initial_std: Initial policy standard deviation; None takes the seed's
+            (2.5 with a decoder, 0.5 without).
+        max_latent: Bound of each latent element when a decoder is used.
+        steps_per_latent: Low-level steps per high-level action (1 in the seed).
+        normalize_reward: Normalise rewards by a running return estimate (SB3 VecNormalize).
+        subprocess_envs: Step environments in worker processes (at most one per core).
+        checkpoint_every: Environment steps between resumable checkpoints.
+        seed: Seed of environments and policy.
+        device: Torch device of PPO (``auto``, ``cpu``, ``cuda``).
+    """
+
+    total_steps: int = 150_000_000
+    n_envs: int = 32
+    steps_per_update: int = 16_384
+    epochs: int = 10
+    minibatch_size: int = 1024
+    clip_range: float = 0.2
+    target_kl: float = 0.3
+    entropy_coefficient: float = 1e-4
+    gae_lambda: float = 0.95
+    gamma: float = 0.99
+    max_grad_norm: float = 1.0
+    learning_rate: float = 5e-5
+    hidden_layers: tuple[int, ...] = (1024, 1024, 1024)
+    initial_std: float | None = None
+    max_latent: float = 3.0
+    steps_per_latent: int = 1
+    normalize_reward: bool = True
+    subprocess_envs: bool = True
+    checkpoint_every: int = 1_000_000
+    seed: int = 0
+    device: str = "auto"
+
+    def std_for(self, with_decoder: bool) -> float:
+        """The initial standard deviation for the mode."""
+        if self.initial_std is not None:
+            return self.initial_std
+        return 2.5 if with_decoder else 0.5
+
+
+@dataclass(frozen=True)
+class EvaluationSummary:
+    """Returns of a task policy over episodes.
+
+    Attributes:
+        task: Task name.
+        episodes: Number of episodes.
+        mean_return: Mean undiscounted return.
+        std_return: Standard deviation of the return.
+        mean_length: Mean episode length (high-level steps).
+        returns: Per-episode returns.
+        lengths: Per-episode lengths.
+    """
+
+    task: str
+    episodes: int
+    mean_return: float
+    std_return: float
+    mean_length: float
+    returns: list[float]
+    lengths: list[int]
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """Hex SHA-256 of a file."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def make_task_env(task: str, overrides: dict[str, Any], decoder: LatentDecoder | None, config: TransferConfig):
+    """One environment of ``task``, wrapped in the latent action space when a decoder is given."""
+    import tasks
+
+    env = tasks.make(task, **overrides)
+    if decoder is None:
+        return env
+    return LatentActionEnv(env, decoder, config.max_latent, config.steps_per_latent)
+
+
+def _vec_env(task: str, overrides: dict[str, Any], decoder: LatentDecoder | None, config: TransferConfig):
+    """Raw task environments, decoded in one batch, then SB3's observation/reward normaliser."""
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+    import tasks
+
+    use_processes = config.subprocess_envs and config.n_envs > 1
+    venv = make_vec_env(
+        lambda: tasks.make(task, **overrides),
+        n_envs=config.n_envs,
+        seed=config.seed,
+        vec_env_cls=SubprocVecEnv if use_processes else DummyVecEnv,
+        vec_env_kwargs={"start_method": "spawn"} if use_processes else None,
+    )
+    if decoder is not None:
+        venv = LatentActionVecEnv(venv, decoder, config.max_latent, config.steps_per_latent)
+    return VecNormalize(venv, norm_obs=True, norm_reward=config.normalize_reward, gamma=config.gamma)
+
+
+def train_transfer(
+    task: str,
+    out: str | os.PathLike,
+    decoder: str | os.PathLike | None = None,
+    config: TransferConfig | None = None,
+    task_overrides: dict[str, Any] | None = None,
+    progress: bool = True,
+) -> Path:
+    """Trains a high-level policy on a registered task; returns the policy file.
+
+    Args:
+        task: A registered task name (``tasks.task_names()``).
+        out: Output folder; an interrupted run in it is resumed.
+        decoder: A decoder file; None trains the no-decoder baseline.
+        config: PPO settings (seed defaults).
+        task_overrides: Task config fields to change.
+        progress: Show a progress bar.
+
+    Raises:
+        hierarchy.DecoderMismatchError: The decoder does not fit the task.
+    """
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    config = config or TransferConfig()
+    overrides = dict(task_overrides or {})
+    out = Path(out)
+    frozen = load_decoder(decoder) if decoder is not None else None
+    if config.steps_per_update % config.n_envs:
+        raise ValueError(f"steps_per_update {config.steps_per_update} must be a multiple of n_envs {config.n_envs}")
+    venv = _vec_env(task, overrides, frozen, config)
+    checkpoint = out / CHECKPOINT_DIR
+    model_file, normaliser_file = checkpoint / "model.zip", checkpoint / "vecnormalize.pkl"
+    if model_file.is_file() and normaliser_file.is_file():
+        # Our own run's files (written below): SB3 needs its pickles to resume the optimiser.
+        assert venv.venv is not None
+        venv = VecNormalize.load(str(normaliser_file), venv.venv)
+        model = PPO.load(str(model_file), env=venv, device=config.device)
+        print(f"resuming {out} from step {model.num_timesteps}")
+    else:
+        model = PPO(
+            "MultiInputPolicy",
+            venv,
+            learning_rate=config.learning_rate,
+            n_steps=config.steps_per_update // config.n_envs,
+            batch_size=config.minibatch_size,
+            n_epochs=config.epochs,
+            gamma=config.gamma,
+            gae_lambda=config.gae_lambda,
+            clip_range=config.clip_range,
+            ent_coef=config.entropy_coefficient,
+            max_grad_norm=config.max_grad_norm,
+            target_kl=config.target_kl,
+            policy_kwargs={
+                "net_arch": {"pi": list(config.hidden_layers), "vf": list(config.hidden_layers)},
+                "activation_fn": torch.nn.Tanh,
+                "log_std_init": math.log(config.std_for(frozen is not None)),
+            },
+            seed=config.seed,
+            device=config.device,
+            verbose=0,
+        )
+    model.set_logger(configure(str(out), ["csv", "tensorboard"]))
+    remaining = config.total_steps - model.num_timesteps
+    if remaining > 0:
+        callback = _ProgressAndCheckpoint(config.total_steps, config.checkpoint_every, checkpoint, progress)
+        model.learn(remaining, callback=callback, reset_num_timesteps=False)
+    decoder_facts = None
+    if decoder is not None:
+        decoder_facts = {
+            "path": str(Path(decoder).resolve()),
+            "sha256": file_sha256(decoder),
+            "max_latent": config.max_latent,
+            "steps_per_latent": config.steps_per_latent,
+        }
+    policy = task_policy_from_sb3(
+        model,
+        venv,
+        {
+            "task": task,
+            "task_overrides": overrides,
+            "decoder": decoder_facts,
+            "provenance": provenance(steps=int(model.num_timesteps), config=asdict(config)),
+        },
+    )
+    path = policy.save(out / POLICY_FILE)
+    _save_sb3(model, venv, checkpoint)
+    write_json(out / "transfer.json", {"task": task, "decoder": decoder_facts, "config": asdict(config)})
+    venv.close()
+    return path
+
+
+def _save_sb3(model, venv, folder: Path) -> None:
+    """SB3's model and normaliser, each written atomically (resume files of our own run)."""
+    with atomic_path(folder / "model.zip") as temporary:
+        model.save(str(temporary.with_suffix(".zip")))
+        temporary.with_suffix(".zip").replace(temporary)
+    with atomic_path(folder / "vecnormalize.pkl") as temporary:
+        venv.save(str(temporary))
+
+
+class _ProgressAndCheckpoint(BaseCallback):
+    """A progress bar over environment steps, and resume files every ``every`` steps."""
+
+    def __init__(self, total: int, every: int, folder: Path, progress: bool) -> None:
+        super().__init__()
+        self.total, self.every, self.folder, self.progress = total, every, folder, progress
+
+    def _on_training_start(self) -> None:
+        steps = self.model.num_timesteps
+        self.bar = tqdm(total=self.total, initial=steps, desc="high-level PPO", unit="step", disable=not self.progress)
+        self.next_save = (steps // self.every + 1) * self.every
+
+    def _on_step(self) -> bool:
+        self.bar.update(self.model.num_timesteps - self.bar.n)
+        if self.model.num_timesteps >= self.next_save:
+            _save_sb3(self.model, self.model.get_env(), self.folder)
+            self.next_save += self.every
+        return True
+
+    def _on_training_end(self) -> None:
+        self.bar.close()
+
+
+def load_policy_and_decoder(
+    policy_path: str | os.PathLike, decoder_path: str | os.PathLike | None = None
+) -> tuple[TaskPolicy, LatentDecoder | None]:
+    """A task policy and the decoder it drives (from its recorded path unless given).
+
+    Raises:
+        ValueError: The decoder file differs from the one the policy was trained with.
+    """
+    policy = load_task_policy(policy_path)
+    facts = policy.spec.decoder
+    if facts is None:
+        return policy, None
+    path = Path(decoder_path) if decoder_path is not None else Path(facts["path"])
+    if not path.is_file():
+        raise FileNotFoundError(f"the policy drives decoder {path}, which does not exist; pass --decoder FILE")
+    if file_sha256(path) != facts["sha256"]:
+        raise ValueError(f"{path} is not the decoder {policy_path} was trained with (SHA-256 differs)")
+    return policy, load_decoder(path)
+
+
+def evaluate_transfer(
+    policy_path: str | os.PathLike,
+    episodes: int = 10,
+    decoder_path: str | os.PathLike | None = None,
+    seed: int = 0,
+    max_steps: int | None = None,
+) -> EvaluationSummary:
+    """Runs a task policy deterministically and summarises the task's returns.
+
+    Args:
+        policy_path: A ``policy.safetensors`` from :func:`train_transfer`.
+        episodes: Episodes to run.
+        decoder_path: Override of the decoder file's location.
+        seed: Seed of the first episode (then ``seed + 1``, ...).
+        max_steps: Override of the task's episode limit (shorter evaluations).
+    """
+    if episodes < 1:
+        raise ValueError("episodes must be at least 1")
+    policy, decoder = load_policy_and_decoder(policy_path, decoder_path)
+    spec = policy.spec
+    overrides = dict(spec.task_overrides)
+    if max_steps is not None:
+        overrides["max_steps"] = max_steps
+    facts = spec.decoder or {}
+    config = TransferConfig(max_latent=facts.get("max_latent", 3.0), steps_per_latent=facts.get("steps_per_latent", 1))
+    env = make_task_env(spec.task, overrides, decoder, config)
+    returns, lengths = [], []
+    for episode in range(episodes):
+        observation, _ = env.reset(seed=seed + episode)
+        total, length, done = 0.0, 0, False
+        while not done:
+            action = policy.act({k: v[None] for k, v in observation.items()})[0]
+            observation, reward, terminated, truncated, _ = env.step(action)
+            total += float(reward)
+            length += 1
+            done = terminated or truncated
+        returns.append(total)
+        lengths.append(length)
+    return EvaluationSummary(
+        task=spec.task,
+        episodes=episodes,
+        mean_return=float(np.mean(returns)),
+        std_return=float(np.std(returns)),
+        mean_length=float(np.mean(lengths)),
+        returns=returns,
+        lengths=lengths,
+    )

@@ -1,0 +1,88 @@
+"""Multi-clip distillation: objective, training loop, resume, decoder export."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from distill.npmp import NpmpConfig, _gaussian_kl, load_policy
+from distill.npmp_training import default_sampler, train_npmp
+from distill.trainer import CheckpointMismatchError, TrainerConfig
+from hierarchy import load_decoder
+
+SMALL = NpmpConfig(latent_size=8, encoder_layers=(64, 64), decoder_layers=(64, 64, 64))
+FAST = TrainerConfig(steps=120, batch_size=16, learning_rate=1e-3, log_every=10, checkpoint_every=40)
+SAMPLER = dataclasses.replace(default_sampler(), window=5)
+
+
+@pytest.fixture(scope="module")
+def distilled(rollout_dir, tmp_path_factory):
+    out = tmp_path_factory.mktemp("npmp")
+    return train_npmp(rollout_dir, out, SMALL, FAST, SAMPLER, progress=False), out
+
+
+def test_loss_decreases_on_a_tiny_dataset(distilled):
+    result, _ = distilled
+    history = result.outcome.history
+    assert history["step"][-1] == FAST.steps
+    first, last = np.mean(history["loss"][:2]), np.mean(history["loss"][-2:])
+    assert last < 0.5 * first, (first, last)
+    assert history["mse"][-1] < history["mse"][0]
+
+
+def test_training_writes_a_decoder_that_matches_the_policy(distilled, rollout_dir):
+    result, _ = distilled
+    decoder = load_decoder(result.decoder)
+    policy = load_policy(result.policy)
+    spec = decoder.spec
+    assert spec.latent_size == 8 and spec.hidden_layers == (64, 64, 64)
+    assert list(spec.observation_sizes) == list(SMALL.decoder_observables)
+    assert spec.provenance["steps"] == FAST.steps and "library_version" in spec.provenance
+    assert all(not p.requires_grad for p in decoder.parameters()) and not decoder.training
+    rng = np.random.default_rng(0)
+    raw = rng.normal(size=(4, spec.observation_size)).astype(np.float32)
+    z = rng.normal(size=(4, 8)).astype(np.float32)
+    with torch.no_grad():
+        normalised = (torch.from_numpy(raw) - policy.decoder_mean) / policy.decoder_std
+        expected = policy.decode(normalised, torch.from_numpy(z)).clamp(-1, 1)
+        got = decoder(torch.from_numpy(raw), torch.from_numpy(z))
+    torch.testing.assert_close(got, expected, rtol=0, atol=0)
+
+
+def test_rerun_resumes_and_other_settings_are_refused(rollout_dir, tmp_path):
+    short = dataclasses.replace(FAST, steps=20, checkpoint_every=10)
+    train_npmp(rollout_dir, tmp_path, SMALL, short, SAMPLER, progress=False)
+    longer = train_npmp(rollout_dir, tmp_path, SMALL, dataclasses.replace(short, steps=30), SAMPLER, progress=False)
+    assert longer.outcome.resumed_from == 20 and longer.outcome.steps == 30
+    with pytest.raises(CheckpointMismatchError, match="other settings"):
+        train_npmp(rollout_dir, tmp_path, dataclasses.replace(SMALL, kl_weight=0.5), longer_cfg(short), SAMPLER)
+
+
+def longer_cfg(config: TrainerConfig) -> TrainerConfig:
+    return dataclasses.replace(config, steps=40)
+
+
+@pytest.mark.parametrize("alpha", [0.0, 0.95])
+def test_kl_term_equals_torch_distributions(alpha):
+    rng = torch.Generator().manual_seed(1)
+    mean, std = torch.randn(5, 6, generator=rng), torch.rand(5, 6, generator=rng) + 0.1
+    previous = torch.randn(5, 6, generator=rng)
+    prior_std = float(np.sqrt(1 - alpha**2))
+    expected = torch.distributions.kl_divergence(
+        torch.distributions.Normal(mean, std), torch.distributions.Normal(alpha * previous, prior_std)
+    ).sum(-1)
+    torch.testing.assert_close(_gaussian_kl(mean, std, alpha * previous, prior_std), expected)
+
+
+def test_alpha_must_be_below_one():
+    with pytest.raises(ValueError, match="alpha"):
+        NpmpConfig(alpha=1.0)
+
+
+def test_dataset_without_the_observables_is_refused(rollout_dir, tmp_path):
+    config = dataclasses.replace(SMALL, decoder_observables=("walker/not_an_observable",))
+    with pytest.raises(ValueError, match="lacks observables"):
+        train_npmp(rollout_dir, tmp_path, config, FAST, SAMPLER, progress=False)

@@ -1,0 +1,107 @@
+"""High-level training over a frozen decoder: frozenness, the policy file, train/eval/resume."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+import tasks
+from hierarchy import LatentActionVecEnv
+from hierarchy.task_policy import load_task_policy, task_policy_from_sb3
+from hierarchy.transfer import TransferConfig, evaluate_transfer, train_transfer
+
+from .test_decoder import small_decoder
+
+TINY = TransferConfig(
+    total_steps=128,
+    n_envs=2,
+    steps_per_update=64,
+    minibatch_size=32,
+    epochs=2,
+    hidden_layers=(16, 16),
+    subprocess_envs=False,
+    checkpoint_every=64,
+    device="cpu",
+)
+
+
+def latent_ppo(decoder, n_envs: int = 2) -> tuple[PPO, VecNormalize]:
+    venv = DummyVecEnv([lambda: tasks.make("velocity_control", max_steps=40)] * n_envs)
+    venv = VecNormalize(LatentActionVecEnv(venv, decoder), norm_obs=True)
+    model = PPO(
+        "MultiInputPolicy",
+        venv,
+        n_steps=32,
+        batch_size=32,
+        n_epochs=2,
+        learning_rate=1e-3,
+        policy_kwargs={"net_arch": [16, 16], "log_std_init": math.log(2.5)},
+        device="cpu",
+        seed=0,
+    )
+    return model, venv
+
+
+def test_high_level_update_leaves_every_decoder_weight_bit_identical():
+    decoder = small_decoder()
+    before = {k: v.clone() for k, v in decoder.state_dict().items()}
+    model, _ = latent_ppo(decoder)
+    policy_before = {k: v.clone() for k, v in model.policy.state_dict().items()}
+    model.learn(128)
+    optimised = {id(p) for group in model.policy.optimizer.param_groups for p in group["params"]}
+    assert not optimised & {id(p) for p in decoder.parameters()}
+    for name, value in decoder.state_dict().items():
+        assert torch.equal(value, before[name]), name
+    # ... while the high-level policy did learn something.
+    assert any(not torch.equal(v, policy_before[k]) for k, v in model.policy.state_dict().items())
+
+
+def test_policy_file_acts_like_stable_baselines(tmp_path):
+    model, venv = latent_ppo(small_decoder())
+    model.learn(64)
+    venv.training = False  # a reset must not move the statistics the file captured
+    facts = {"task": "velocity_control", "task_overrides": {"max_steps": 40}, "decoder": None}
+    path = task_policy_from_sb3(model, venv, facts).save(tmp_path / "policy.safetensors")
+    policy = load_task_policy(path)
+    normalised = venv.reset()
+    raw = venv.get_original_obs()
+    expected, _ = model.predict(normalised, deterministic=True)
+    np.testing.assert_allclose(policy.act(raw), expected, atol=1e-5)
+    assert policy.spec.action_low == -3.0 and policy.spec.action_high == 3.0
+
+
+@pytest.mark.parametrize("with_decoder", [True, False])
+def test_train_resume_and_evaluate(tmp_path, with_decoder):
+    decoder_file = small_decoder().save(tmp_path / "decoder.safetensors") if with_decoder else None
+    out = tmp_path / "run"
+    policy_file = train_transfer("velocity_control", out, decoder_file, TINY, {"max_steps": 30}, progress=False)
+    policy = load_task_policy(policy_file)
+    assert policy.spec.action_high == (3.0 if with_decoder else 1.0)
+    assert (policy.spec.decoder is not None) == with_decoder
+    assert (out / "progress.csv").is_file() and (out / "checkpoint" / "model.zip").is_file()
+    # A longer run continues from the saved step instead of starting over.
+    longer = dataclasses.replace(TINY, total_steps=192)
+    train_transfer("velocity_control", out, decoder_file, longer, {"max_steps": 30}, progress=False)
+    assert load_task_policy(policy_file).spec.provenance["steps"] == 192
+    summary = evaluate_transfer(policy_file, episodes=2, max_steps=10)
+    assert summary.episodes == 2 and len(summary.returns) == 2
+    assert all(0 < n <= 10 for n in summary.lengths) and np.isfinite(summary.mean_return)
+
+
+def test_initial_std_follows_the_seed():
+    assert TransferConfig().std_for(True) == 2.5 and TransferConfig().std_for(False) == 0.5
+    assert TransferConfig(initial_std=1.0).std_for(True) == 1.0
+
+
+def test_evaluation_refuses_a_different_decoder(tmp_path):
+    decoder_file = small_decoder().save(tmp_path / "decoder.safetensors")
+    policy_file = train_transfer("velocity_control", tmp_path / "run", decoder_file, TINY, {"max_steps": 30}, False)
+    other = small_decoder(seed=1).save(tmp_path / "other.safetensors")
+    with pytest.raises(ValueError, match="SHA-256"):
+        evaluate_transfer(policy_file, episodes=1, decoder_path=other)
