@@ -20,7 +20,7 @@ import numpy as np
 from distill.dataset import RolloutDataset
 from distill.npmp import NpmpConfig, NpmpPolicy, NpmpSpec
 from distill.sampler import SamplerConfig, WindowDataset
-from distill.trainer import TrainerConfig, TrainingOutcome, train
+from distill.trainer import TrainerConfig, TrainingOutcome, distributed_from_environment, train
 from tasks.atomic import write_json
 
 DECODER_FILE = "decoder.safetensors"
@@ -95,6 +95,9 @@ def train_npmp(
         return windows.batches(batch_size, seed=int(rng.integers(2**62)), device=device)
 
     outcome = train(policy, batches, out, trainer, settings, progress=progress, description="distilling")
+    if not distributed_from_environment().is_main:  # under torchrun, rank 0 alone writes the files
+        dataset.close()
+        return DistillResult(out / DECODER_FILE, out / POLICY_FILE, outcome)
     facts = {
         "dataset": files,
         "episodes": len(dataset.episodes),

@@ -216,6 +216,9 @@ def train(
     bar.close()
     if writer is not None:
         writer.close()
+    if place.world_size > 1 and dist.is_initialized():
+        dist.barrier()  # every replica has finished before rank 0 writes the final files
+        dist.destroy_process_group()
     final = history["loss"][-1] if history["loss"] else math.nan
     return TrainingOutcome(step, resumed_from, final, history, time.perf_counter() - started)
 

@@ -86,3 +86,21 @@ def test_dataset_without_the_observables_is_refused(rollout_dir, tmp_path):
     config = dataclasses.replace(SMALL, decoder_observables=("walker/not_an_observable",))
     with pytest.raises(ValueError, match="lacks observables"):
         train_npmp(rollout_dir, tmp_path, config, FAST, SAMPLER, progress=False)
+
+
+def test_torchrun_ddp_on_two_cpu_processes(rollout_dir, tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "ddp"
+    command = [
+        sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", "29533",
+        "-m", "mocap_hierarchy", "distill", "train", "--data", str(rollout_dir), "--out", str(out),
+        "--steps", "6", "--batch-size", "8", "--latent-size", "4", "--encoder-layers", "16", "16",
+        "--decoder-layers", "16", "16", "16", "--window", "5", "--log-every", "2", "--device", "cpu",
+    ]  # fmt: skip
+    environment = {**os.environ, "OMP_NUM_THREADS": "1"}
+    finished = subprocess.run(command, capture_output=True, text=True, timeout=300, env=environment)
+    assert finished.returncode == 0, finished.stderr[-3000:]
+    assert load_decoder(out / "decoder.safetensors").spec.provenance["steps"] == 6
