@@ -62,7 +62,10 @@ def main() -> None:
     parser.add_argument("--envs", type=int, default=16)
     parser.add_argument("--steps", type=int, default=200, help="vectorised steps per trial")
     parser.add_argument("--trials", type=int, default=5)
+    parser.add_argument("--torch-threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
     args = parser.parse_args()
+    if args.torch_threads > 0:
+        torch.set_num_threads(args.torch_threads)
 
     decoder = seed_sized_decoder()
     plain = DummyVecEnv([lambda: tasks.make(args.task)] * args.envs)

@@ -12,6 +12,7 @@ from distill.evaluation import EvaluationConfig
 from distill.expert_config import ExpertConfig
 from distill.npmp import NpmpConfig
 from distill.npmp_evaluation import PolicyEvaluationConfig
+from distill.npmp_training import POLICY_FILE, default_sampler, train_npmp
 from distill.rollouts import RolloutConfig
 from distill.sampler import SamplerConfig
 from distill.trainer import TrainerConfig
@@ -69,8 +70,8 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     train_npmp.add_argument("--out", type=Path, required=True, help="output folder (decoder.safetensors lands here)")
     add_dataclass_arguments(train_npmp, TrainerConfig)
     add_dataclass_arguments(train_npmp, NpmpConfig)
-    add_dataclass_arguments(train_npmp, SamplerConfig, exclude=("normalize_observations", "actions"))
-    train_npmp.set_defaults(handler=_distill_train, window=30, weighting="rwr")
+    add_dataclass_arguments(train_npmp, SamplerConfig, ("normalize_observations", "actions"), base=default_sampler())
+    train_npmp.set_defaults(handler=_distill_train)
 
     evaluate_npmp = distill_commands.add_parser("eval", help="roll the multi-clip policy out on snippets or clips")
     evaluate_npmp.add_argument("policy", type=Path, help="policy.safetensors (or the distillation folder)")
@@ -165,14 +166,12 @@ def _rollout(args: argparse.Namespace) -> None:
 
 
 def _distill_train(args: argparse.Namespace) -> None:
-    from distill.npmp_training import train_npmp
-
     result = train_npmp(
         args.data,
         args.out,
         dataclass_from_args(NpmpConfig, args),
         dataclass_from_args(TrainerConfig, args),
-        dataclass_from_args(SamplerConfig, args, normalize_observations=True),
+        dataclass_from_args(SamplerConfig, args, base=default_sampler()),
     )
     print(
         f"distilled {result.outcome.steps} steps (final loss {result.outcome.final_loss:.4g}); "
@@ -184,7 +183,6 @@ def _distill_eval(args: argparse.Namespace) -> None:
     from distill.dataset import RolloutDataset
     from distill.npmp import load_policy
     from distill.npmp_evaluation import evaluate_multi_clip, fraction_of_experts
-    from distill.npmp_training import POLICY_FILE
 
     config = dataclass_from_args(PolicyEvaluationConfig, args)
     path = args.policy / POLICY_FILE if args.policy.is_dir() else args.policy

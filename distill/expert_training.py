@@ -33,8 +33,8 @@ from distill.expert_config import ExpertConfig, PiecewiseLearningRate, expert_co
 from distill.expert_files import ExpertDir, expert_dir_for, write_clip_info
 from distill.expert_policy import policy_from_sb3
 from distill.fanout import Job
-from mocap_hierarchy import __version__
-from tasks.atomic import atomic_path, write_json
+from hierarchy.decoder import provenance
+from tasks.atomic import save_sb3, write_json
 from tasks.clip_format import list_clips
 from tasks.clips import parse_snippet_id, resolve_clip_file
 from tasks.tracking import ClipTrackingEnv, TrackingConfig
@@ -188,12 +188,7 @@ class _Trainer:
                 "snippet": self.snippet,
                 "residual_actions": self.config.residual_actions,
                 "action_std": self.config.action_std,
-                "provenance": {
-                    "library_version": __version__,
-                    "trained_steps": int(steps),
-                    "clips": str(self.clips),
-                    "date": time.strftime("%Y-%m-%d"),
-                },
+                "provenance": provenance(trained_steps=int(steps), clips=str(self.clips)),
             },
         )
 
@@ -233,7 +228,7 @@ class _Trainer:
         return keep_training(state, evaluation.normalized_length, evaluation.normalized_reward, steps, config)
 
     def _save_best(self, model: PPO, venv: VecNormalize, policy) -> None:
-        _save_sb3(model, venv, self.expert.best_model, self.expert.vecnormalize)
+        save_sb3(model, venv, self.expert.best_model, self.expert.vecnormalize, _SB3_SAVE_EXCLUDE)
         policy.save(self.expert)
 
     def checkpoint(self, model: PPO, state: dict) -> None:
@@ -241,19 +236,9 @@ class _Trainer:
         folder = self.expert.checkpoint_dir
         venv = model.get_vec_normalize_env()
         assert venv is not None
-        _save_sb3(model, venv, folder / "model.zip", folder / "vecnormalize.pkl")
+        save_sb3(model, venv, folder / "model.zip", folder / "vecnormalize.pkl", _SB3_SAVE_EXCLUDE)
         saved = {k: v for k, v in state.items() if k != "recent"}
         write_json(folder / "state.json", {**saved, "steps": int(model.num_timesteps)})
-
-
-def _save_sb3(model: PPO, venv, model_path: Path, normaliser_path: Path) -> None:
-    """Saves a PPO model and its VecNormalize with stable-baselines3's own formats, atomically."""
-    with atomic_path(model_path) as temporary:
-        zipped = temporary.with_suffix(".zip")  # SB3 appends .zip to names without it
-        model.save(str(zipped), exclude=_SB3_SAVE_EXCLUDE)
-        zipped.replace(temporary)
-    with atomic_path(normaliser_path) as temporary:
-        venv.save(str(temporary))
 
 
 def train_expert(

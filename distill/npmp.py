@@ -22,8 +22,6 @@ JSON metadata, like the decoder file.
 
 from __future__ import annotations
 
-import itertools
-import json
 import math
 import os
 from dataclasses import asdict, dataclass, field
@@ -32,17 +30,14 @@ from typing import Any
 
 import numpy as np
 import torch
-from safetensors import safe_open
-from safetensors.torch import save_file
 from torch import nn
 
-from hierarchy.decoder import ACTIVATIONS, DecoderSpec, LatentDecoder, decoder_network, provenance
-from tasks.atomic import atomic_path
+from hierarchy.decoder import ACTIVATIONS, DecoderSpec, LatentDecoder, decoder_network, mlp, provenance
+from hierarchy.described_file import read_described, write_described
 from tasks.observables import DECODER, OBSERVABLE_SETS
 
 POLICY_FORMAT = "mocap_hierarchy.multi_clip_policy"
 POLICY_SCHEMA_VERSION = 1
-_METADATA_KEY = "mocap_hierarchy"
 
 
 @dataclass(frozen=True)
@@ -113,17 +108,6 @@ class NpmpSpec:
         return NpmpConfig(**fields)
 
 
-def _mlp(sizes: list[int], out: int, activation: str, layer_norm: bool) -> nn.Sequential:
-    layers: list[nn.Module] = []
-    for size_in, size_out in itertools.pairwise(sizes):
-        layers.append(nn.Linear(size_in, size_out))
-        if layer_norm:
-            layers.append(nn.LayerNorm(size_out))
-        layers.append(ACTIVATIONS[activation]())
-    layers.append(nn.Linear(sizes[-1], out))
-    return nn.Sequential(*layers)
-
-
 class NpmpPolicy(nn.Module):
     """Encoder and decoder of the multi-clip policy (see the module docstring).
 
@@ -150,8 +134,9 @@ class NpmpPolicy(nn.Module):
         self.spec = spec
         config = self.config = spec.npmp
         encoder_size = sum(spec.encoder_sizes.values())
-        self.encoder = _mlp(
-            [encoder_size + config.latent_size, *config.encoder_layers],
+        self.encoder = mlp(
+            encoder_size + config.latent_size,
+            config.encoder_layers,
             2 * config.latent_size,
             config.activation,
             config.layer_norm,
@@ -191,7 +176,7 @@ class NpmpPolicy(nn.Module):
         """Action means from normalised decoder inputs and ``z`` (unclipped)."""
         return self.decoder(torch.cat([decoder_input, z], dim=-1))
 
-    def forward(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict[str, float]]:
+    def forward(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
         """The seed's objective on a batch of windows (the trainer's loss).
 
         Args:
@@ -199,7 +184,7 @@ class NpmpPolicy(nn.Module):
                 (normalised), ``actions`` ``(B, T, 56)`` targets, ``weights`` ``(B, T)``.
 
         Returns:
-            ``(loss, {"nll", "kl", "mse"})``, each averaged over batch and time.
+            ``(loss, {"nll", "kl", "mse"})``, each averaged over batch and time (the metrics detached).
         """
         config = self.config
         encoder_input, decoder_input = batch["encoder"], batch["decoder"]
@@ -223,7 +208,7 @@ class NpmpPolicy(nn.Module):
             z = z_next
         count = size * steps
         loss = (nll + config.kl_weight * kl) / count
-        return loss, {"nll": nll.item() / count, "kl": kl.item() / count, "mse": squared.item() / count}
+        return loss, {"nll": nll.detach() / count, "kl": kl.detach() / count, "mse": squared / count}
 
     @torch.no_grad()
     def act(
@@ -259,15 +244,8 @@ class NpmpPolicy(nn.Module):
 
     def save(self, path: str | os.PathLike) -> Path:
         """Writes the whole policy (weights, normalisers, :class:`NpmpSpec`) atomically."""
-        tensors = {k: v.detach().contiguous().cpu() for k, v in self.state_dict().items()}
-        metadata = {
-            _METADATA_KEY: json.dumps(
-                {"format": POLICY_FORMAT, "schema_version": POLICY_SCHEMA_VERSION, **asdict(self.spec)}
-            )
-        }
-        with atomic_path(path) as temporary:
-            save_file(tensors, str(temporary), metadata=metadata)
-        return Path(path)
+        description = {"format": POLICY_FORMAT, "schema_version": POLICY_SCHEMA_VERSION, **asdict(self.spec)}
+        return write_described(path, dict(self.state_dict()), description)
 
 
 def load_policy(path: str | os.PathLike) -> NpmpPolicy:
@@ -277,21 +255,13 @@ def load_policy(path: str | os.PathLike) -> NpmpPolicy:
         FileNotFoundError: No such file.
         ValueError: Another format, a newer schema or corrupt content.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(
-            f"multi-clip policy file {path} does not exist (`mocap-hierarchy distill train` writes it)"
-        )
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            description = json.loads((f.metadata() or {})[_METADATA_KEY])
-            tensors = {k: f.get_tensor(k) for k in f.keys()}  # noqa: SIM118 (safe_open is not a dict)
-    except Exception as error:
-        raise ValueError(f"{path} is not a readable multi-clip policy file ({error})") from None
-    if description.pop("format", None) != POLICY_FORMAT:
-        raise ValueError(f"{path} is not a multi-clip policy file")
-    if description.pop("schema_version", 0) > POLICY_SCHEMA_VERSION:
-        raise ValueError(f"{path} has a newer schema than this library reads: upgrade mocap-hierarchy")
+    description, tensors = read_described(
+        path,
+        POLICY_FORMAT,
+        POLICY_SCHEMA_VERSION,
+        "multi-clip policy",
+        missing_hint=" (`mocap-hierarchy distill train` writes it)",
+    )
     description["ref_steps"] = tuple(description["ref_steps"])
     spec = NpmpSpec(**description)
     policy = NpmpPolicy(

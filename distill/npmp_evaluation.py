@@ -74,8 +74,8 @@ def evaluate_multi_clip(
         rewards, lengths = [], []
         while lockstep.active:
             active = list(lockstep.active)
-            encoder_in = _flat(lockstep.batch(encoder_keys), encoder_keys)
-            decoder_in = _flat(lockstep.batch(decoder_keys), decoder_keys)
+            batch = lockstep.batch(keys)
+            encoder_in, decoder_in = _flat(batch, encoder_keys), _flat(batch, decoder_keys)
             actions, z_new = policy.act(encoder_in, decoder_in, z[active])
             z[active] = z_new
             for transition in lockstep.step(actions):

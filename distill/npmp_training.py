@@ -15,8 +15,6 @@ import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-import numpy as np
-
 from distill.dataset import RolloutDataset
 from distill.npmp import NpmpConfig, NpmpPolicy, NpmpSpec
 from distill.sampler import SamplerConfig, WindowDataset
@@ -70,58 +68,58 @@ def train_npmp(
     sampler = dataclasses.replace(sampler or default_sampler(), normalize_observations=True, actions="mean")
     out = Path(out)
     dataset = RolloutDataset(data)
-    ref_steps = tuple(int(s) for s in dataset.ref_steps)
-    indices = dataset.observable_indices
-    missing = [k for k in (*npmp.encoder_observables, *npmp.decoder_observables) if k not in indices]
-    if missing:
-        raise ValueError(f"the dataset at {data} lacks observables the policy needs: {sorted(set(missing))}")
-    encoder_sizes = {k: len(indices[k]) for k in npmp.encoder_observables}
-    decoder_sizes = {k: len(indices[k]) for k in npmp.decoder_observables}
-    windows = WindowDataset(dataset, {"encoder": tuple(encoder_sizes), "decoder": tuple(decoder_sizes)}, sampler)
-    means, stds = windows.statistics()
-    action_size = len(dataset.statistics().mean_act_mean)
-    spec = NpmpSpec(
-        config=asdict(npmp),
-        encoder_sizes=encoder_sizes,
-        decoder_sizes=decoder_sizes,
-        ref_steps=ref_steps,
-        action_size=action_size,
-    )
-    policy = NpmpPolicy(spec, means["encoder"], stds["encoder"], means["decoder"], stds["decoder"])
-    files = [str(p.resolve()) for p in dataset.files]
-    settings = {"npmp": asdict(npmp), "sampler": asdict(sampler), "data": files}
+    try:
+        ref_steps = tuple(int(s) for s in dataset.ref_steps)
+        indices = dataset.observable_indices
+        missing = [k for k in (*npmp.encoder_observables, *npmp.decoder_observables) if k not in indices]
+        if missing:
+            raise ValueError(f"the dataset at {data} lacks observables the policy needs: {sorted(set(missing))}")
+        encoder_sizes = {k: len(indices[k]) for k in npmp.encoder_observables}
+        decoder_sizes = {k: len(indices[k]) for k in npmp.decoder_observables}
+        windows = WindowDataset(dataset, {"encoder": tuple(encoder_sizes), "decoder": tuple(decoder_sizes)}, sampler)
+        means, stds = windows.statistics()
+        spec = NpmpSpec(
+            config=asdict(npmp),
+            encoder_sizes=encoder_sizes,
+            decoder_sizes=decoder_sizes,
+            ref_steps=ref_steps,
+            action_size=windows.action_size,
+        )
+        policy = NpmpPolicy(spec, means["encoder"], stds["encoder"], means["decoder"], stds["decoder"])
+        files = [str(p.resolve()) for p in dataset.files]
+        settings = {"npmp": asdict(npmp), "sampler": asdict(sampler), "data": files}
 
-    def batches(rng: np.random.Generator, batch_size: int, device):
-        return windows.batches(batch_size, seed=int(rng.integers(2**62)), device=device)
+        def batches(seed: int, batch_size: int, device):
+            return windows.batches(batch_size, seed=seed, device=device)
 
-    outcome = train(policy, batches, out, trainer, settings, progress=progress, description="distilling")
-    if not distributed_from_environment().is_main:  # under torchrun, rank 0 alone writes the files
-        dataset.close()
-        return DistillResult(out / DECODER_FILE, out / POLICY_FILE, outcome)
-    facts = {
-        "dataset": files,
-        "episodes": len(dataset.episodes),
-        "steps": outcome.steps,
-        "batch_size": trainer.batch_size,
-        "weighting": sampler.weighting,
-        "final_loss": outcome.final_loss,
-    }
-    policy.cpu().eval()
-    policy.spec = dataclasses.replace(spec, provenance=facts)
-    policy_path = policy.save(out / POLICY_FILE)
-    decoder_path = policy.export_decoder(**facts).save(out / DECODER_FILE)
-    write_json(
-        out / "distill.json",
-        {
-            "npmp": asdict(npmp),
-            "trainer": asdict(trainer),
-            "sampler": asdict(sampler),
-            "data": files,
+        outcome = train(policy, batches, out, trainer, settings, progress=progress, description="distilling")
+        if not distributed_from_environment().is_main:  # under torchrun, rank 0 alone writes the files
+            return DistillResult(out / DECODER_FILE, out / POLICY_FILE, outcome)
+        facts = {
+            "dataset": files,
+            "episodes": len(dataset.episodes),
             "steps": outcome.steps,
-            "resumed_from": outcome.resumed_from,
+            "batch_size": trainer.batch_size,
+            "weighting": sampler.weighting,
             "final_loss": outcome.final_loss,
-            "seconds": outcome.seconds,
-        },
-    )
-    dataset.close()
-    return DistillResult(decoder_path, policy_path, outcome)
+        }
+        policy.cpu().eval()
+        policy.spec = dataclasses.replace(spec, provenance=facts)
+        policy_path = policy.save(out / POLICY_FILE)
+        decoder_path = policy.export_decoder(**facts).save(out / DECODER_FILE)
+        write_json(
+            out / "distill.json",
+            {
+                "npmp": asdict(npmp),
+                "trainer": asdict(trainer),
+                "sampler": asdict(sampler),
+                "data": files,
+                "steps": outcome.steps,
+                "resumed_from": outcome.resumed_from,
+                "final_loss": outcome.final_loss,
+                "seconds": outcome.seconds,
+            },
+        )
+        return DistillResult(decoder_path, policy_path, outcome)
+    finally:
+        dataset.close()

@@ -27,8 +27,6 @@ path for training (whole batches gathered in a background thread).
 from __future__ import annotations
 
 import contextlib
-import hashlib
-import json
 import math
 import os
 from collections.abc import Iterator, Sequence
@@ -45,6 +43,7 @@ from distill import dataset_schema as schema
 from distill.dataset import RolloutDataset, Statistics
 from tasks.atomic import atomic_path
 from tasks.clips import MAX_SNIPPET_LENGTH, parse_snippet_id
+from tasks.fingerprints import settings_fingerprint
 
 DEFAULT_TEMPERATURES: dict[str, float | None] = {"bc": None, "cwr": 0.2, "awr": 8.0, "rwr": 4.0}
 """The seed's Table 2 temperatures per weighting scheme."""
@@ -223,8 +222,7 @@ class WindowDataset(Dataset):
             "actions": self._action_name,
             "episodes": [(e.file, e.group) for e in self.episodes],
         }
-        digest = hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
-        folder = folder / f"windows-{digest}"
+        folder = folder / f"windows-{settings_fingerprint(key)}"
         shapes = self._array_shapes()
         if not all((folder / f"{name}.npy").is_file() for name in shapes):
             with contextlib.ExitStack() as stack:
@@ -247,6 +245,11 @@ class WindowDataset(Dataset):
 
     def __len__(self) -> int:
         return len(self._window_start)
+
+    @property
+    def action_size(self) -> int:
+        """Width of the action targets."""
+        return self._action_size
 
     def probabilities(self) -> np.ndarray:
         """Sampling probability of each window (sums to 1)."""

@@ -20,7 +20,6 @@ be an ``nn.Module`` whose ``forward(batch)`` returns ``(loss, {name: float})``.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import os
@@ -37,9 +36,14 @@ from torch import nn
 from tqdm.auto import tqdm
 
 from tasks.atomic import atomic_path, write_json
+from tasks.fingerprints import settings_fingerprint
 
 CHECKPOINT = "checkpoint.pt"
 HISTORY = "history.json"
+
+
+_FREE = ("steps", "log_every", "checkpoint_every", "device")
+"""Trainer fields a resumed run may change (more steps, other logging or device)."""
 
 
 @dataclass(frozen=True)
@@ -106,11 +110,6 @@ def resolve_device(name: str, place: Distributed) -> torch.device:
     return torch.device("cuda", place.local_rank)
 
 
-def fingerprint(settings: dict[str, Any]) -> str:
-    """A short hash of JSON-able settings (what must match to resume)."""
-    return hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]
-
-
 @dataclass
 class TrainingOutcome:
     """What :func:`train` did.
@@ -132,7 +131,7 @@ class TrainingOutcome:
 
 def train(
     model: nn.Module,
-    batches: Callable[[np.random.Generator, int, torch.device], Iterator[dict[str, torch.Tensor]]],
+    batches: Callable[[int, int, torch.device], Iterator[dict[str, torch.Tensor]]],
     out: str | os.PathLike,
     config: TrainerConfig,
     settings: dict[str, Any],
@@ -142,8 +141,9 @@ def train(
     """Trains ``model`` (in place) with Adam, resuming from ``out/checkpoint.pt``.
 
     Args:
-        model: An ``nn.Module``; ``model(batch)`` returns ``(scalar loss, {name: float})``.
-        batches: ``batches(rng, batch_size, device)`` yields batches forever.
+        model: An ``nn.Module``; ``model(batch)`` returns ``(scalar loss, {name: 0-d tensor})``
+            (detached tensors: they are read back only when logged, so no step waits for the device).
+        batches: ``batches(seed, batch_size, device)`` yields batches forever.
         out: Output folder (checkpoint, history, TensorBoard logs).
         config: Loop settings.
         settings: Everything else that determines the result (model and data
@@ -167,7 +167,7 @@ def train(
     torch.manual_seed(config.seed)
     model.to(device)
     optimizer = _optimizer(model, config)
-    key = fingerprint({"trainer": {k: v for k, v in asdict(config).items() if k not in _FREE}, **settings})
+    key = settings_fingerprint({"trainer": {k: v for k, v in asdict(config).items() if k not in _FREE}, **settings})
     state = _load_checkpoint(out / CHECKPOINT, key, config)
     history: dict[str, list[float]] = {"step": [], "loss": []}
     step = 0
@@ -178,15 +178,15 @@ def train(
         history = json.loads(state["history"])
     resumed_from = step
     # Sampling depends on (seed, rank, step reached): a resumed run draws fresh batches reproducibly.
-    rng = np.random.default_rng([config.seed, place.rank, step])
+    sampling_seed = int(np.random.SeedSequence([config.seed, place.rank, step]).generate_state(1)[0])
     trained = nn.parallel.DistributedDataParallel(model) if place.world_size > 1 else model
     model.train()
     writer = _tensorboard(out) if place.is_main else None
     bar = tqdm(
         total=config.steps, initial=step, desc=description, unit="step", disable=not (progress and place.is_main)
     )
-    window: dict[str, list[float]] = {}
-    stream = batches(rng, config.batch_size // place.world_size, device)
+    window: dict[str, list[torch.Tensor]] = {}
+    stream = batches(sampling_seed, config.batch_size // place.world_size, device)
     while step < config.steps:
         batch = next(stream)
         loss, values = trained(batch)
@@ -199,10 +199,10 @@ def train(
             )
         optimizer.step()
         step += 1
-        for name, value in {"loss": loss.item(), "grad_norm": float(grad_norm), **values}.items():
+        for name, value in {"loss": loss.detach(), "grad_norm": grad_norm, **values}.items():
             window.setdefault(name, []).append(value)
         if step % config.log_every == 0 or step == config.steps:
-            means = {name: float(np.mean(v)) for name, v in window.items()}
+            means = {name: torch.stack(v).float().mean().item() for name, v in window.items()}
             window = {}
             history["step"].append(step)
             for name, value in means.items():
@@ -221,10 +221,6 @@ def train(
         dist.destroy_process_group()
     final = history["loss"][-1] if history["loss"] else math.nan
     return TrainingOutcome(step, resumed_from, final, history, time.perf_counter() - started)
-
-
-_FREE = ("steps", "log_every", "checkpoint_every", "device")
-"""Trainer fields a resumed run may change (more steps, other logging or device)."""
 
 
 def _optimizer(model: nn.Module, config: TrainerConfig) -> torch.optim.Optimizer:

@@ -3,7 +3,7 @@
 Neither go-to-target nor velocity control: the humanoid starts standing, a
 heading is drawn at random, and each step pays the cosine between where the
 pelvis faces and that heading (in [-1, 1]) as long as it stays on its feet.
-The task is 25 lines; the rest trains PPO in the decoder's latent space.
+The task is under 25 lines; the rest trains PPO in the decoder's latent space.
 
 Run: python examples/new_task.py --decoder runs/quickstart/distill/decoder.safetensors
 """

@@ -28,25 +28,20 @@ from __future__ import annotations
 
 import datetime
 import itertools
-import json
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
-from safetensors import safe_open
-from safetensors.torch import save_file
 from torch import nn
 
-from tasks.atomic import atomic_path
+from hierarchy.described_file import read_described, write_described
 
 DECODER_FORMAT = "mocap_hierarchy.decoder"
 DECODER_SCHEMA_VERSION = 1
-METADATA_KEY = "mocap_hierarchy"
-"""Safetensors metadata key holding the JSON description."""
 
 ACTIVATIONS: dict[str, type[nn.Module]] = {"elu": nn.ELU, "relu": nn.ReLU, "tanh": nn.Tanh}
 """Hidden-layer activations a decoder file may name."""
@@ -116,15 +111,7 @@ class DecoderSpec:
 
     @classmethod
     def from_json(cls, data: dict[str, Any], where: str) -> DecoderSpec:
-        """Parses :meth:`to_json` output; errors name the file."""
-        if data.get("format") != DECODER_FORMAT:
-            raise DecoderFileError(f"{where} is not a mocap-hierarchy decoder file (format {data.get('format')!r})")
-        version = data.get("schema_version", 0)
-        if version > DECODER_SCHEMA_VERSION:
-            raise DecoderFileError(
-                f"{where} has decoder schema version {version}; this library reads up to "
-                f"{DECODER_SCHEMA_VERSION}: upgrade mocap-hierarchy"
-            )
+        """Builds the spec from :meth:`to_json` output (format checks are the reader's); errors name the file."""
         fields = {k: v for k, v in data.items() if k not in ("format", "schema_version")}
         fields["hidden_layers"] = tuple(fields.get("hidden_layers", ()))
         fields["observation_sizes"] = {str(k): int(v) for k, v in fields.get("observation_sizes", {}).items()}
@@ -134,21 +121,32 @@ class DecoderSpec:
             raise DecoderFileError(f"{where}: {error}") from None
 
 
+def mlp(input_size: int, hidden_layers: Sequence[int], output_size: int, activation: str, layer_norm: bool):
+    """``(Linear [-> LayerNorm] -> activation)`` per hidden layer, then a final ``Linear``.
+
+    For three hidden layers with layer norm the parameterised modules sit at
+    indices 0, 1, 3, 4, 6, 7 and 9 (MoCapAct's layout too).
+    """
+    layers: list[nn.Module] = []
+    sizes = [input_size, *hidden_layers]
+    for size_in, size_out in itertools.pairwise(sizes):
+        layers.append(nn.Linear(size_in, size_out))
+        if layer_norm:
+            layers.append(nn.LayerNorm(size_out))
+        layers.append(ACTIVATIONS[activation]())
+    layers.append(nn.Linear(sizes[-1], output_size))
+    return nn.Sequential(*layers)
+
+
 def decoder_network(spec: DecoderSpec) -> nn.Sequential:
     """The decoder's MLP over ``[normalised observation, z]`` (untrained).
 
     Producers (the distillation trainer) train this same network and hand its
     weights to :class:`LatentDecoder`, so the architecture lives only here.
     """
-    layers: list[nn.Module] = []
-    sizes = [spec.observation_size + spec.latent_size, *spec.hidden_layers]
-    for size_in, size_out in itertools.pairwise(sizes):
-        layers.append(nn.Linear(size_in, size_out))
-        if spec.layer_norm:
-            layers.append(nn.LayerNorm(size_out))
-        layers.append(ACTIVATIONS[spec.activation]())
-    layers.append(nn.Linear(sizes[-1], spec.action_size))
-    return nn.Sequential(*layers)
+    return mlp(
+        spec.observation_size + spec.latent_size, spec.hidden_layers, spec.action_size, spec.activation, spec.layer_norm
+    )
 
 
 class LatentDecoder(nn.Module):
@@ -286,13 +284,10 @@ class LatentDecoder(nn.Module):
 
     def save(self, path: str | os.PathLike) -> Path:
         """Writes the decoder file atomically (see the module docstring); returns the path."""
-        tensors = {f"net.{k}": v.detach().contiguous().cpu() for k, v in self.net.state_dict().items()}
-        tensors["observation_mean"] = self.observation_mean.detach().contiguous().cpu()
-        tensors["observation_std"] = self.observation_std.detach().contiguous().cpu()
-        metadata = {METADATA_KEY: json.dumps(self.spec.to_json())}
-        with atomic_path(path) as temporary:
-            save_file(tensors, str(temporary), metadata=metadata)
-        return Path(path)
+        tensors = {f"net.{k}": v for k, v in self.net.state_dict().items()}
+        tensors["observation_mean"] = self.observation_mean
+        tensors["observation_std"] = self.observation_std
+        return write_described(path, tensors, self.spec.to_json())
 
 
 def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") -> LatentDecoder:
@@ -305,24 +300,17 @@ def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") ->
     Raises:
         DecoderFileError: Missing file, another format, a newer schema, or corrupt content.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise DecoderFileError(
-            f"decoder file {path} does not exist; `mocap-hierarchy distill train` writes one, "
-            "`mocap-hierarchy decoder import-mocapact` converts MoCapAct's"
-        )
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            metadata = f.metadata() or {}
-            tensors = {k: f.get_tensor(k) for k in f.keys()}  # noqa: SIM118 (safe_open is not a dict)
-    except Exception as error:  # safetensors raises its own error types for corrupt headers
-        raise DecoderFileError(f"{path} is not a readable safetensors file ({error})") from None
-    if METADATA_KEY not in metadata:
-        raise DecoderFileError(f"{path} is a safetensors file without a mocap-hierarchy decoder description")
-    try:
-        spec = DecoderSpec.from_json(json.loads(metadata[METADATA_KEY]), str(path))
-    except json.JSONDecodeError as error:
-        raise DecoderFileError(f"{path}: corrupt decoder description ({error})") from None
+    description, tensors = read_described(
+        path,
+        DECODER_FORMAT,
+        DECODER_SCHEMA_VERSION,
+        "decoder",
+        error=DecoderFileError,
+        missing_error=DecoderFileError,
+        missing_hint="; `mocap-hierarchy distill train` writes one, `mocap-hierarchy decoder import-mocapact` "
+        "converts MoCapAct's",
+    )
+    spec = DecoderSpec.from_json(description, str(path))
     missing = [k for k in ("observation_mean", "observation_std") if k not in tensors]
     if missing:
         raise DecoderFileError(f"{path} lacks tensors {missing}")

@@ -17,7 +17,6 @@ then read out of the stubs' recorded state.
 
 from __future__ import annotations
 
-import hashlib
 import importlib
 import os
 import zipfile
@@ -29,7 +28,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from hierarchy.decoder import DecoderFileError, DecoderSpec, LatentDecoder, decoder_network, provenance
+from hierarchy.decoder import ACTIVATIONS, DecoderFileError, DecoderSpec, LatentDecoder, decoder_network, provenance
+from tasks.fingerprints import file_sha256
 from tasks.observables import DECODER, PROPRIOCEPTION
 
 MOCAPACT_WALKER = "CMUHumanoidPositionControlledV2020"
@@ -43,9 +43,6 @@ OBS_RMS_EPSILON = 1e-8
 
 DECODER_PREFIX = "action_decoder."
 """Key prefix of the decoder's weights in the checkpoint's ``state_dict``."""
-
-_ACTIVATION_NAMES = {"elu": "elu", "relu": "relu", "tanh": "tanh"}
-"""Last component of MoCapAct's ``activation_fn`` (lower case) -> our activation name."""
 
 
 class MocapActImportError(DecoderFileError):
@@ -186,14 +183,6 @@ def load_checkpoint_safely(path: str | os.PathLike) -> dict[str, Any]:
 # Conversion --------------------------------------------------------------------------------------
 
 
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
-
-
 def _decoder_weights(state_dict: Mapping[str, Any], path: Path) -> list[dict[str, torch.Tensor]]:
     """The decoder's parameterised modules in Sequential order, each ``{param: tensor}``."""
     modules: dict[int, dict[str, torch.Tensor]] = {}
@@ -225,11 +214,10 @@ def _activation(value: Any, path: Path) -> str:
     if not isinstance(name, str):
         raise MocapActImportError(f"{path}: hyper_parameters lack a readable activation_fn (got {value!r})")
     short = name.rsplit(".", 1)[-1].lower()
-    if short not in _ACTIVATION_NAMES:
-        raise MocapActImportError(
-            f"{path}: unsupported activation_fn {name!r}; known: torch.nn.ELU, torch.nn.ReLU, torch.nn.Tanh"
-        )
-    return _ACTIVATION_NAMES[short]
+    if short not in ACTIVATIONS:
+        known = ", ".join(f"torch.nn.{cls.__name__}" for cls in ACTIVATIONS.values())
+        raise MocapActImportError(f"{path}: unsupported activation_fn {name!r}; known: {known}")
+    return short
 
 
 def _decoder_observables(hyper: Mapping[str, Any]) -> tuple[str, ...]:
@@ -327,7 +315,7 @@ def import_mocapact_checkpoint(path: str | os.PathLike, *, latent_bound: float =
             f"{input_size - int(embed_size)}"
         )
 
-    sha256 = _sha256(path)
+    sha256 = file_sha256(path)
     global_step = checkpoint.get("global_step")
     lightning_version = checkpoint.get("pytorch-lightning_version")
     spec = DecoderSpec(

@@ -11,7 +11,6 @@ deterministic=True)`` on the same (normalised) observations.
 from __future__ import annotations
 
 import itertools
-import json
 import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
@@ -20,15 +19,12 @@ from typing import Any
 
 import numpy as np
 import torch
-from safetensors import safe_open
-from safetensors.torch import save_file
 from torch import nn
 
-from tasks.atomic import atomic_path
+from hierarchy.described_file import read_described, write_described
 
 TASK_POLICY_FORMAT = "mocap_hierarchy.task_policy"
 TASK_POLICY_SCHEMA_VERSION = 1
-_METADATA_KEY = "mocap_hierarchy"
 
 
 @dataclass(frozen=True)
@@ -104,12 +100,9 @@ class TaskPolicy(nn.Module):
 
     def save(self, path: str | os.PathLike) -> Path:
         """Writes the policy file atomically."""
-        tensors = {k: v.detach().contiguous() for k, v in self.state_dict().items()}
         description = {"format": TASK_POLICY_FORMAT, "schema_version": TASK_POLICY_SCHEMA_VERSION, **asdict(self.spec)}
         description["action_size"] = self.action_net.out_features
-        with atomic_path(path) as temporary:
-            save_file(tensors, str(temporary), metadata={_METADATA_KEY: json.dumps(description)})
-        return Path(path)
+        return write_described(path, dict(self.state_dict()), description)
 
 
 def load_task_policy(path: str | os.PathLike) -> TaskPolicy:
@@ -119,19 +112,13 @@ def load_task_policy(path: str | os.PathLike) -> TaskPolicy:
         FileNotFoundError: No such file.
         ValueError: Not a task policy file, or a newer schema.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"task policy file {path} does not exist (`mocap-hierarchy transfer train` writes it)")
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            description = json.loads((f.metadata() or {})[_METADATA_KEY])
-            tensors = {k: f.get_tensor(k) for k in f.keys()}  # noqa: SIM118 (safe_open is not a dict)
-    except Exception as error:
-        raise ValueError(f"{path} is not a readable task policy file ({error})") from None
-    if description.pop("format", None) != TASK_POLICY_FORMAT:
-        raise ValueError(f"{path} is not a task policy file")
-    if description.pop("schema_version", 0) > TASK_POLICY_SCHEMA_VERSION:
-        raise ValueError(f"{path} has a newer schema than this library reads: upgrade mocap-hierarchy")
+    description, tensors = read_described(
+        path,
+        TASK_POLICY_FORMAT,
+        TASK_POLICY_SCHEMA_VERSION,
+        "task policy",
+        missing_hint=" (`mocap-hierarchy transfer train` writes it)",
+    )
     action_size = int(description.pop("action_size"))
     description["hidden_layers"] = tuple(description["hidden_layers"])
     spec = TaskPolicySpec(**description)

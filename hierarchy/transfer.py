@@ -15,7 +15,6 @@ logs), ``transfer.json`` (settings and outcome) and, while training,
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 from dataclasses import asdict, dataclass
@@ -30,7 +29,8 @@ from tqdm.auto import tqdm
 from hierarchy.decoder import LatentDecoder, load_decoder, provenance
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
-from tasks.atomic import atomic_path, write_json
+from tasks.atomic import save_sb3, write_json
+from tasks.fingerprints import file_sha256
 
 POLICY_FILE = "policy.safetensors"
 CHECKPOINT_DIR = "checkpoint"
@@ -117,23 +117,20 @@ class EvaluationSummary:
     lengths: list[int]
 
 
-def file_sha256(path: str | os.PathLike) -> str:
-    """Hex SHA-256 of a file."""
-    digest = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
-def make_task_env(task: str, overrides: dict[str, Any], decoder: LatentDecoder | None, config: TransferConfig):
+def make_task_env(
+    task: str,
+    overrides: dict[str, Any],
+    decoder: LatentDecoder | None,
+    max_latent: float = 3.0,
+    steps_per_latent: int = 1,
+):
     """One environment of ``task``, wrapped in the latent action space when a decoder is given."""
     import tasks
 
     env = tasks.make(task, **overrides)
     if decoder is None:
         return env
-    return LatentActionEnv(env, decoder, config.max_latent, config.steps_per_latent)
+    return LatentActionEnv(env, decoder, max_latent, steps_per_latent)
 
 
 def _vec_env(task: str, overrides: dict[str, Any], decoder: LatentDecoder | None, config: TransferConfig):
@@ -243,19 +240,15 @@ def train_transfer(
         },
     )
     path = policy.save(out / POLICY_FILE)
-    _save_sb3(model, venv, checkpoint)
+    _save_resume_files(model, checkpoint)
     write_json(out / "transfer.json", {"task": task, "decoder": decoder_facts, "config": asdict(config)})
     venv.close()
     return path
 
 
-def _save_sb3(model, venv, folder: Path) -> None:
-    """SB3's model and normaliser, each written atomically (resume files of our own run)."""
-    with atomic_path(folder / "model.zip") as temporary:
-        model.save(str(temporary.with_suffix(".zip")))
-        temporary.with_suffix(".zip").replace(temporary)
-    with atomic_path(folder / "vecnormalize.pkl") as temporary:
-        venv.save(str(temporary))
+def _save_resume_files(model, folder: Path) -> None:
+    """SB3's model and normaliser (the run's own resume files)."""
+    save_sb3(model, model.get_vec_normalize_env(), folder / "model.zip", folder / "vecnormalize.pkl")
 
 
 class _ProgressAndCheckpoint(BaseCallback):
@@ -273,7 +266,7 @@ class _ProgressAndCheckpoint(BaseCallback):
     def _on_step(self) -> bool:
         self.bar.update(self.model.num_timesteps - self.bar.n)
         if self.model.num_timesteps >= self.next_save:
-            _save_sb3(self.model, self.model.get_env(), self.folder)
+            _save_resume_files(self.model, self.folder)
             self.next_save += self.every
         return True
 
@@ -325,8 +318,7 @@ def evaluate_transfer(
     if max_steps is not None:
         overrides["max_steps"] = max_steps
     facts = spec.decoder or {}
-    config = TransferConfig(max_latent=facts.get("max_latent", 3.0), steps_per_latent=facts.get("steps_per_latent", 1))
-    env = make_task_env(spec.task, overrides, decoder, config)
+    env = make_task_env(spec.task, overrides, decoder, facts.get("max_latent", 3.0), facts.get("steps_per_latent", 1))
     returns, lengths = [], []
     for episode in range(episodes):
         observation, _ = env.reset(seed=seed + episode)

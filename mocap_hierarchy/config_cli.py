@@ -53,8 +53,17 @@ def _parse_bool(text: str) -> bool:
     raise argparse.ArgumentTypeError(f"expected true or false, got {text!r}")
 
 
-def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, exclude: tuple[str, ...] = ()) -> None:
-    """Adds one flag per field of ``cls`` (defaults shown in ``--help``)."""
+def add_dataclass_arguments(
+    parser: argparse.ArgumentParser, cls: type, exclude: tuple[str, ...] = (), base: Any = None
+) -> None:
+    """Adds one flag per field of ``cls`` (defaults shown in ``--help``).
+
+    Args:
+        parser: Receives the flags.
+        cls: The config dataclass.
+        exclude: Fields that get no flag.
+        base: An instance whose values are the defaults (instead of the class's).
+    """
     hints = typing.get_type_hints(cls)
     docs = field_docs(cls)
     group = parser.add_argument_group(cls.__name__)
@@ -68,7 +77,12 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, exclude:
             kind = next(a for a in args if a is not type(None))
             args = typing.get_args(kind)
         origin = typing.get_origin(kind)
-        default = f.default if f.default is not dataclasses.MISSING else f.default_factory()  # type: ignore[misc]
+        if base is not None:
+            default = getattr(base, f.name)
+        elif f.default is not dataclasses.MISSING:
+            default = f.default
+        else:
+            default = f.default_factory()  # type: ignore[misc]
         help_text = f"{docs.get(f.name, '')} (default: {default})"
         flag = "--" + f.name.replace("_", "-")
         if origin is tuple:
@@ -79,12 +93,12 @@ def add_dataclass_arguments(parser: argparse.ArgumentParser, cls: type, exclude:
             group.add_argument(flag, type=_scalar(kind), default=None, help=help_text, dest=f.name)
 
 
-def dataclass_from_args(cls: type[T], namespace: argparse.Namespace, **fixed: Any) -> T:
-    """Builds ``cls`` from parsed flags; flags left unset keep the defaults."""
+def dataclass_from_args(cls: type[T], namespace: argparse.Namespace, base: T | None = None, **fixed: Any) -> T:
+    """Builds ``cls`` from parsed flags; flags left unset keep the defaults (``base``'s values when given)."""
     values = {}
     for f in dataclasses.fields(cls):  # type: ignore[arg-type]
         value = getattr(namespace, f.name, None)
         if value is not None:
             values[f.name] = tuple(value) if isinstance(value, list) else value
     values.update(fixed)
-    return cls(**values)
+    return dataclasses.replace(base, **values) if base is not None else cls(**values)  # type: ignore[type-var]

@@ -38,3 +38,26 @@ def write_json(path: str | os.PathLike, value: Any) -> Path:
     with atomic_path(path) as temporary:
         temporary.write_text(json.dumps(value, indent=2) + "\n")
     return Path(path)
+
+
+def save_sb3(
+    model: Any, normaliser: Any, model_path: Path, normaliser_path: Path, exclude: list[str] | None = None
+) -> None:
+    """Saves a stable-baselines3 model and its ``VecNormalize`` in SB3's own formats, each atomically.
+
+    Args:
+        model: The SB3 algorithm (``model.save``).
+        normaliser: Its ``VecNormalize`` (``normaliser.save``).
+        model_path: Target of the model (``.zip``).
+        normaliser_path: Target of the normaliser (``.pkl``).
+        exclude: Model attributes SB3 should leave out of the file.
+    """
+    with atomic_path(model_path) as temporary:
+        zipped = temporary.with_suffix(".zip")  # SB3 appends .zip to names without it
+        try:
+            model.save(str(zipped), exclude=exclude)
+            zipped.replace(temporary)
+        finally:
+            zipped.unlink(missing_ok=True)
+    with atomic_path(normaliser_path) as temporary:
+        normaliser.save(str(temporary))

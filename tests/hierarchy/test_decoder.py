@@ -22,7 +22,7 @@ from hierarchy import (
     LatentDecoder,
     load_decoder,
 )
-from hierarchy.decoder import METADATA_KEY
+from hierarchy.described_file import METADATA_KEY
 from tasks.observables import DECODER, PROPRIOCEPTION
 
 
