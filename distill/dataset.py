@@ -161,6 +161,25 @@ class RolloutDataset:
             raise schema.DatasetError(f"snippet {snippet} is not in the dataset ({len(self.snippets())} snippets)")
         return found
 
+    def require_observables(self, keys: Sequence[str], needed_by: str) -> dict[str, int]:
+        """Sizes of ``keys``; an error naming those the dataset lacks otherwise.
+
+        Args:
+            keys: Observables a model reads.
+            needed_by: The model, for the message (``the multi-clip policy``, ``the GPT``).
+
+        Raises:
+            DatasetError: Some keys are not stored, with what is and how to get the rest.
+        """
+        missing = sorted({k for k in keys if k not in self.observable_indices})
+        if missing:
+            raise schema.DatasetError(
+                f"the dataset {self.files[0].parent} lacks observables {needed_by} needs: {missing}. It stores "
+                f"{len(self.observable_indices)} observables; roll the experts out again with `mocap-hierarchy "
+                "rollout` (which stores every observable) or choose other observables"
+            )
+        return {k: len(self.observable_indices[k]) for k in keys}
+
     def columns(self, keys: Sequence[str]) -> np.ndarray:
         """Concatenated column indices of observables, in the order given.
 

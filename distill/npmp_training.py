@@ -70,12 +70,8 @@ def train_npmp(
     dataset = RolloutDataset(data)
     try:
         ref_steps = tuple(int(s) for s in dataset.ref_steps)
-        indices = dataset.observable_indices
-        missing = [k for k in (*npmp.encoder_observables, *npmp.decoder_observables) if k not in indices]
-        if missing:
-            raise ValueError(f"the dataset at {data} lacks observables the policy needs: {sorted(set(missing))}")
-        encoder_sizes = {k: len(indices[k]) for k in npmp.encoder_observables}
-        decoder_sizes = {k: len(indices[k]) for k in npmp.decoder_observables}
+        encoder_sizes = dataset.require_observables(npmp.encoder_observables, "the multi-clip policy's encoder")
+        decoder_sizes = dataset.require_observables(npmp.decoder_observables, "the multi-clip policy's decoder")
         windows = WindowDataset(dataset, {"encoder": tuple(encoder_sizes), "decoder": tuple(decoder_sizes)}, sampler)
         means, stds = windows.statistics()
         spec = NpmpSpec(

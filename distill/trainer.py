@@ -2,7 +2,9 @@
 
 The loop reads top to bottom: draw a batch, compute the model's loss, step
 the optimiser (gradient norm clipped), log, checkpoint. A model only has to
-be an ``nn.Module`` whose ``forward(batch)`` returns ``(loss, {name: float})``.
+be an ``nn.Module`` whose ``forward(batch)`` returns ``(loss, {name: float})``;
+with weight decay, a model may also offer ``optimizer_groups(weight_decay)``
+(AdamW parameter groups, e.g. no decay on biases and norms).
 
 * **Resume**: ``out/checkpoint.pt`` holds weights, optimiser state, step,
   and a fingerprint of the settings; a rerun
@@ -226,7 +228,9 @@ def train(
 def _optimizer(model: nn.Module, config: TrainerConfig) -> torch.optim.Optimizer:
     parameters = [p for p in model.parameters() if p.requires_grad]
     if config.weight_decay > 0:
-        return torch.optim.AdamW(parameters, lr=config.learning_rate, weight_decay=config.weight_decay)
+        groups = getattr(model, "optimizer_groups", None)  # a model may exempt biases and norms from decay
+        chosen = groups(config.weight_decay) if groups is not None else parameters
+        return torch.optim.AdamW(chosen, lr=config.learning_rate, weight_decay=config.weight_decay)
     return torch.optim.Adam(parameters, lr=config.learning_rate)
 
 

@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 from stable_baselines3 import PPO
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from hierarchy import LatentActionVecEnv, load_decoder
@@ -73,6 +74,7 @@ def main(argv: list[str] | None = None) -> float:
         target_kl=seed.target_kl,
         policy_kwargs={"net_arch": [args.hidden] * 3, "log_std_init": math.log(seed.std_for(with_decoder=True))},
     )
+    model.set_logger(Logger(None, []))  # SB3's default logger would leave an empty folder in /tmp
     model.learn(args.steps, progress_bar=False)
 
     # 3. How well does it face the heading now? Mean reward per step over a few episodes.

@@ -12,6 +12,7 @@ from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_a
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser (every package adds its subcommands)."""
     from distill import cli as distill_cli
+    from distill import gpt_cli
     from hierarchy import cli as hierarchy_cli
     from tasks import cli as tasks_cli
 
@@ -30,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     tasks_cli.add_commands(subparsers)
     distill_cli.add_commands(subparsers)
+    gpt_cli.add_commands(subparsers)
     hierarchy_cli.add_commands(subparsers)
     return parser
 

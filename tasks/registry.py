@@ -16,6 +16,7 @@ from typing import Any
 import gymnasium as gym
 
 from tasks.go_to_target import GoToTargetConfig, GoToTargetEnv
+from tasks.motion_completion import MotionCompletionConfig, MotionCompletionEnv
 from tasks.synthetic.library import SYNTHETIC_CLIPS
 from tasks.tracking import ClipTrackingEnv, TrackingConfig
 from tasks.velocity_control import VelocityControlConfig, VelocityControlEnv
@@ -88,6 +89,13 @@ REGISTRY: dict[str, TaskEntry] = {
             VelocityControlConfig,
             VelocityControlEnv,
             "follow a speed and heading command redrawn every 10 s (seed B.3.2)",
+        ),
+        TaskEntry(
+            "motion_completion",
+            f"{GYM_NAMESPACE}/MotionCompletion-v0",
+            MotionCompletionConfig,
+            MotionCompletionEnv,
+            "a 32-step prompt from a snippet start, then free completion until a fall or 500 steps",
         ),
     )
 }

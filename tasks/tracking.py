@@ -290,7 +290,7 @@ class ClipTrackingEnv(gym.Env):
         if self._needs_subtree_velocity:
             mujoco.mj_subtreeVel(self._model, self._data)
 
-        self._time_step += 1
+        self._time_step = self._next_time_step()
         self._previous, self._state = self._state, WalkerState.read(self.walker, self._data)
         state, reference, t = self._state, self._reference, self._time_step
         error = self._error(state)
@@ -306,18 +306,18 @@ class ClipTrackingEnv(gym.Env):
             state.body_quaternions,
             reference.body_quaternions[t],
         )
-        terminated = error > self.config.termination_threshold or diverged
-        truncated = not terminated and t == reference.last_step
+        self._episode_length += 1
+        terminated, truncated, end_info = self._episode_end(error, diverged)
         if diverged:
             reward = 0.0
         self._episode_return += reward
-        self._episode_length += 1
         observation = self._observation()
         info = {
             "reward_terms": terms,
             "termination_error": error,
             "time_step": reference.first_frame + t,
             "action": action,
+            **end_info,
         }
         if diverged:
             info["physics_diverged"] = True
@@ -325,6 +325,15 @@ class ClipTrackingEnv(gym.Env):
             self._episode_active = False
             info.update(self._episode_summary())
         return observation, reward, terminated, truncated, info
+
+    def _next_time_step(self) -> int:
+        """The reference frame after a step (subclasses may hold the reference still)."""
+        return self._time_step + 1
+
+    def _episode_end(self, error: float, diverged: bool) -> tuple[bool, bool, dict]:
+        """``(terminated, truncated, extra info)`` after a step: fail above the error threshold, end with the clip."""
+        terminated = error > self.config.termination_threshold or diverged
+        return terminated, not terminated and self._time_step == self._reference.last_step, {}
 
     def absolute_action(self, action: np.ndarray) -> np.ndarray:
         """The joint targets an action stands for at this step.

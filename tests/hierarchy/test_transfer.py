@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import torch
 from stable_baselines3 import PPO
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 import tasks
@@ -45,6 +46,7 @@ def latent_ppo(decoder, n_envs: int = 2) -> tuple[PPO, VecNormalize]:
         device="cpu",
         seed=0,
     )
+    model.set_logger(Logger(None, []))  # no SB3 folder left in /tmp
     return model, venv
 
 
