@@ -68,16 +68,18 @@ def _import_mocapact(args: argparse.Namespace) -> None:
     )
 
 
-def _overrides(pairs: list[str]) -> dict:
+def parse_settings(pairs: list[str]) -> dict:
+    """``FIELD=VALUE`` pairs as a dict; values parse as JSON when they can (lists become tuples)."""
     out = {}
     for pair in pairs:
         if "=" not in pair:
             raise ValueError(f"task override {pair!r} is not FIELD=VALUE")
         field, value = pair.split("=", 1)
         try:
-            out[field] = json.loads(value)
+            parsed = json.loads(value)
         except json.JSONDecodeError:
-            out[field] = value
+            parsed = value
+        out[field] = tuple(parsed) if isinstance(parsed, list) else parsed
     return out
 
 
@@ -87,7 +89,7 @@ def _train(args: argparse.Namespace) -> None:
     config = dataclass_from_args(TransferConfig, args)
     if args.steps is not None:
         config = dataclasses.replace(config, total_steps=args.steps)
-    path = train_transfer(args.task, args.out, args.decoder, config, _overrides(args.set))
+    path = train_transfer(args.task, args.out, args.decoder, config, parse_settings(args.set))
     print(f"task policy written to {path}")
 
 

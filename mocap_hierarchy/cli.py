@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 from mocap_hierarchy import __version__
 from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args
@@ -29,6 +30,22 @@ def build_parser() -> argparse.ArgumentParser:
     add_dataclass_arguments(quickstart, QuickstartConfig)
     quickstart.set_defaults(handler=_quickstart)
 
+    record = subparsers.add_parser("record", help="record a rollout of any policy on any task into a rerun .rrd file")
+    record.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
+    record.add_argument(
+        "--policy", required=True, help="random, an expert directory, or a policy/decoder/GPT .safetensors file"
+    )
+    record.add_argument("--out", type=Path, required=True, help="the .rrd file to write")
+    record.add_argument("--episodes", type=int, default=1)
+    record.add_argument("--seed", type=int, default=0)
+    record.add_argument("--prompt", default=None, help="expert directory prompting a GPT (motion_completion)")
+    record.add_argument("--set", nargs="+", default=[], metavar="FIELD=VALUE", help="task settings, e.g. max_steps=200")
+    record.set_defaults(handler=_record)
+
+    view = subparsers.add_parser("view", help="open a .rrd recording in the rerun viewer (or say how to)")
+    view.add_argument("file", type=Path)
+    view.set_defaults(handler=_view)
+
     tasks_cli.add_commands(subparsers)
     distill_cli.add_commands(subparsers)
     gpt_cli.add_commands(subparsers)
@@ -40,6 +57,23 @@ def _quickstart(args: argparse.Namespace) -> None:
     from mocap_hierarchy.quickstart import QuickstartConfig, run_quickstart
 
     run_quickstart(dataclass_from_args(QuickstartConfig, args))
+
+
+def _record(args: argparse.Namespace) -> None:
+    from hierarchy.cli import parse_settings
+    from mocap_hierarchy.record import record
+
+    result = record(
+        args.task, args.policy, args.out, args.episodes, args.seed, parse_settings(args.set), prompt=args.prompt
+    )
+    print(f"recorded {result['episodes']} episode(s), {result['steps']} steps: {result['path']}")
+    print(f"open it with: mocap-hierarchy view {result['path']}")
+
+
+def _view(args: argparse.Namespace) -> None:
+    from mocap_hierarchy.record import view
+
+    print(view(args.file))
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,214 @@
+"""``mocap-hierarchy record`` and ``view``: any task, driven by any policy file, into a rerun recording.
+
+What ``--policy`` may be (recognised by its content, never by unpickling):
+
+* ``random``: uniform random actions in the task's action space;
+* an expert directory (``clip_info.json`` inside): its deterministic actions,
+  on the tracking or motion-completion task of its snippet;
+* a multi-clip ``policy.safetensors`` (``distill train``): tracking with its
+  reference look-ahead and deterministic latents;
+* a task ``policy.safetensors`` (``transfer train``): its task, through its
+  decoder when it has one (the latent ``z`` is recorded too);
+* a ``decoder.safetensors``: random latents through the decoder;
+* a ``gpt.safetensors``: motion completion, prompted by ``--prompt EXPERT_DIR``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+import tasks
+from hierarchy.described_file import METADATA_KEY
+
+Act = Callable[[dict[str, np.ndarray]], np.ndarray]
+Rollout = tuple[gym.Env, Act, Callable[[], None] | None]
+"""An environment, ``act(observation) -> action``, and what to run after each reset (or None)."""
+TRACKING_TASKS = ("tracking", "tracking_expert", "motion_completion")
+
+
+def file_format(path: Path) -> str:
+    """``random``, ``expert`` or the ``format`` named inside a safetensors file."""
+    if str(path) == "random":
+        return "random"
+    if path.is_dir() and (path / "clip_info.json").is_file():
+        return "expert"
+    if not path.exists():
+        raise FileNotFoundError(f"policy {path} does not exist (give a file, an expert directory or 'random')")
+    if path.is_dir():
+        raise ValueError(f"{path} is a folder but not an expert directory; name the .safetensors file inside it")
+    from safetensors import safe_open
+
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            description = json.loads((f.metadata() or {}).get(METADATA_KEY, "{}"))
+    except Exception as error:
+        raise ValueError(f"{path} is not a mocap-hierarchy policy file ({error})") from None
+    found = description.get("format")
+    if not found:
+        raise ValueError(f"{path} is a safetensors file without a mocap-hierarchy description")
+    return found.removeprefix("mocap_hierarchy.")
+
+
+def build_rollout(
+    task: str, policy: str, overrides: dict[str, Any] | None = None, prompt: str | None = None, seed: int = 0
+) -> Rollout:
+    """The environment, the ``act(observation) -> action`` function and the reset hook a recording uses.
+
+    Raises:
+        ValueError: A policy that cannot drive ``task``, with what would.
+    """
+    overrides = dict(overrides or {})
+    path = Path(policy)
+    kind = file_format(path)
+    if kind == "random":
+        env = tasks.make(task, **overrides)
+        env.action_space.seed(seed)
+        return env, lambda observation: env.action_space.sample(), None
+    if kind == "expert":
+        return _expert(task, path, overrides)
+    if kind == "multi_clip_policy":
+        return _multi_clip(task, path, overrides)
+    if kind == "task_policy":
+        return _task_policy(task, path, overrides)
+    if kind == "decoder":
+        from hierarchy import LatentActionEnv, load_decoder
+
+        env = LatentActionEnv(tasks.make(task, **overrides), load_decoder(path))
+        env.action_space.seed(seed)
+        return env, lambda observation: env.action_space.sample(), None
+    if kind == "motion_gpt":
+        return _gpt(task, path, overrides, prompt)
+    raise ValueError(f"{path} holds a {kind!r} file, which is not a policy")
+
+
+def _require_task(task: str, allowed: tuple[str, ...], what: str) -> None:
+    if task not in allowed:
+        raise ValueError(f"{what} drives the tasks {', '.join(allowed)}, not {task!r}")
+
+
+def _expert(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
+    from distill.expert_policy import load_expert
+
+    _require_task(task, TRACKING_TASKS, "an expert")
+    expert = load_expert(path)
+    residual = expert.spec.residual_actions
+    settings = {"snippets": (str(expert.spec.snippet),), **overrides}
+    if task != "motion_completion":
+        settings.setdefault("residual_actions", residual)
+    env = tasks.make(task, **settings)
+    unwrapped: Any = env.unwrapped
+
+    def act(observation):
+        action = expert.mean_actions({k: v[None] for k, v in observation.items()})[0]
+        if residual and task == "motion_completion":
+            action = np.clip(action + unwrapped.reference_actuation(), -1.0, 1.0)
+        return action
+
+    return env, act, None
+
+
+def _multi_clip(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
+    from distill.npmp import load_policy
+
+    _require_task(task, ("tracking",), "the multi-clip policy")
+    policy = load_policy(path)
+    encoder_keys, decoder_keys = list(policy.spec.encoder_sizes), list(policy.spec.decoder_sizes)
+    keys = tuple(dict.fromkeys([*encoder_keys, *decoder_keys]))
+    env = tasks.make(task, **{"ref_steps": policy.spec.ref_steps, "observables": keys, **overrides})
+    z = np.zeros((1, policy.config.latent_size), dtype=np.float32)
+
+    def act(observation):
+        flat = [np.concatenate([observation[k] for k in keys])[None] for keys in (encoder_keys, decoder_keys)]
+        actions, z[:] = policy.act(flat[0], flat[1], z)
+        return actions[0]
+
+    def new_episode() -> None:
+        z[:] = 0.0  # the latent starts at zero in every episode
+
+    return env, act, new_episode
+
+
+def _task_policy(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
+    from hierarchy.transfer import load_policy_and_decoder, make_task_env
+
+    policy, decoder = load_policy_and_decoder(path)
+    spec = policy.spec
+    if task != spec.task:
+        raise ValueError(f"{path} was trained on task {spec.task!r}; record it with --task {spec.task}")
+    facts = spec.decoder or {}
+    env = make_task_env(
+        spec.task,
+        {**spec.task_overrides, **overrides},
+        decoder,
+        facts.get("max_latent", 3.0),
+        facts.get("steps_per_latent", 1),
+    )
+    return env, lambda observation: policy.act({k: v[None] for k, v in observation.items()})[0], None
+
+
+def _gpt(task: str, path: Path, overrides: dict[str, Any], prompt: str | None) -> Rollout:
+    from distill.expert_policy import load_expert
+    from distill.gpt import load_gpt
+    from distill.motion_completion import ExpertPrompt
+
+    _require_task(task, ("motion_completion",), "the GPT")
+    if prompt is None:
+        raise ValueError("the GPT needs a prompt: pass --prompt EXPERT_DIR (the expert of the snippet to complete)")
+    gpt = load_gpt(path)
+    expert = ExpertPrompt(load_expert(prompt))
+    keys = tuple(dict.fromkeys([*gpt.spec.observation_sizes, *expert.keys]))
+    env = tasks.make(task, **{"snippets": (str(expert.expert.spec.snippet),), "observables": keys, **overrides})
+    unwrapped: Any = env.unwrapped
+    cache = gpt.new_cache(1)
+    gpt_keys = list(gpt.spec.observation_sizes)
+
+    def act(observation):
+        gpt_action = gpt.step(np.concatenate([observation[k] for k in gpt_keys])[None], cache)[0]
+        if unwrapped.in_prompt:
+            return expert.act({k: v[None] for k, v in observation.items()}, [unwrapped], [0])[0]
+        return gpt_action
+
+    return env, act, cache.reset
+
+
+def record(
+    task: str,
+    policy: str,
+    out: str | os.PathLike,
+    episodes: int = 1,
+    seed: int = 0,
+    overrides: dict[str, Any] | None = None,
+    prompt: str | None = None,
+) -> dict[str, Any]:
+    """Records ``episodes`` of ``policy`` on ``task`` into the ``.rrd`` file ``out``."""
+    from tasks.recording import record_rollout
+
+    if Path(out).suffix != ".rrd":
+        raise ValueError(f"the recording file must end in .rrd, got {out}")
+    env, act, new_episode = build_rollout(task, policy, overrides, prompt, seed)
+    return record_rollout(env, act, out, episodes=episodes, seed=seed, on_reset=new_episode)
+
+
+def view(path: str | os.PathLike) -> str:
+    """Opens the rerun viewer on ``path`` when one can run here; otherwise says how to open it."""
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"recording {path} does not exist (`mocap-hierarchy record` writes one)")
+    viewer = shutil.which("rerun")
+    has_display = bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")) or os.name == "nt"
+    if viewer and has_display:
+        subprocess.Popen([viewer, str(path)])
+        return f"opened {path} in the rerun viewer"
+    return (
+        f"no display here to open the viewer. Copy {path} to a machine with a screen and run `rerun {path.name}` "
+        "(pip install rerun-sdk==0.41.0), or drag it onto https://app.rerun.io (version 0.41)"
+    )
