@@ -9,23 +9,28 @@ Stages, each resumed (not redone) by a second run into the same folder:
    settings with a small budget; residual actions by default, which learn
    faster, see ``benchmarks/expert_learning.py``), as parallel jobs;
 4. dataset: roll the experts out into the rollout dataset (seed A.2);
-5. summary: a table and ``summary.json``.
+5. distill: the multi-clip policy and its frozen decoder file (seed B.2's
+   objective; hidden layers shrunk to fit the budget);
+6. transfer: velocity control trained with PPO on top of the decoder and, as
+   the baseline, on raw joint targets;
+7. recordings: both velocity-control policies recorded to ``.rrd`` files;
+8. plots and summary: PNG training curves, a table and ``summary.json``.
 
-``--scale`` multiplies every budget for real runs. Distillation, transfer and
-the GPT join as they land.
+``--scale`` multiplies every budget (episodes, steps) for real runs. The GPT is
+not part of the quickstart (it needs a GPU to learn anything; see the README).
 """
 
 from __future__ import annotations
 
 import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from tqdm.auto import tqdm
 
-from tasks.atomic import write_json
+from tasks.atomic import atomic_path, write_json
 from tasks.clip_format import list_clips
 from tasks.clips import ensure_synthetic_library, snippets_of_clip
 from tasks.tracking import ClipTrackingEnv, TrackingConfig, reference_action
@@ -43,6 +48,10 @@ class QuickstartConfig:
         expert_steps: Environment steps per expert.
         residual_actions: Experts act as offsets from the reference pose.
         rollouts_per_snippet: Start-of-snippet and random-start episodes each, per expert.
+        distill_steps: Optimiser steps of the distillation.
+        distill_hidden: Width of the encoder's and decoder's hidden layers (the seed: 1024).
+        transfer_steps: Environment steps of each velocity-control run.
+        record_steps: Steps of each velocity-control recording.
         scale: Multiplies every budget (episodes, steps, rollouts) for real runs.
         workers: Parallel expert trainings (0: one per core).
         seed: Seed of everything random.
@@ -54,6 +63,10 @@ class QuickstartConfig:
     expert_steps: int = 16_384
     residual_actions: bool = True
     rollouts_per_snippet: int = 5
+    distill_steps: int = 600
+    distill_hidden: int = 256
+    transfer_steps: int = 8192
+    record_steps: int = 200
     scale: float = 1.0
     workers: int = 0
     seed: int = 0
@@ -80,6 +93,13 @@ def run_quickstart(config: QuickstartConfig) -> dict:
         write_json(cached, {"key": key, "rows": playback, "env_steps_per_second": speed})
     experts = _experts(out / "experts", str(library), config)
     dataset = _dataset(out / "experts", out / "dataset", str(library), config)
+    distilled = _distill(out / "dataset", out / "distill", config)
+    transfer = {
+        mode: _transfer(out / f"velocity_{mode}", decoder, config)
+        for mode, decoder in (("decoder", distilled["decoder"]), ("joints", None))
+    }
+    recordings = {mode: _record(run["policy"], out / f"velocity_{mode}.rrd", config) for mode, run in transfer.items()}
+    plots = _plots(out, distilled, transfer)
 
     summary = {
         "config": asdict(config),
@@ -88,6 +108,10 @@ def run_quickstart(config: QuickstartConfig) -> dict:
         "env_steps_per_second": speed,
         "experts": experts,
         "dataset": dataset,
+        "distill": distilled,
+        "transfer": transfer,
+        "recordings": recordings,
+        "plots": plots,
         "seconds": time.perf_counter() - started,
     }
     write_json(out / "summary.json", summary)
@@ -179,6 +203,119 @@ def _dataset(experts: Path, out: Path, library: str, config: QuickstartConfig) -
     return {"folder": str(out), "files": len(files), "episodes": len(dataset.episodes), "steps": steps}
 
 
+def _distill(data: Path, out: Path, config: QuickstartConfig) -> dict:
+    from distill.dataset import RolloutDataset
+    from distill.npmp import NpmpConfig
+    from distill.npmp_evaluation import PolicyEvaluationConfig, evaluate_multi_clip, fraction_of_experts
+    from distill.npmp_training import default_sampler, train_npmp
+    from distill.trainer import TrainerConfig
+
+    steps = max(10, round(config.distill_steps * config.scale))
+    hidden = config.distill_hidden
+    npmp = NpmpConfig(encoder_layers=(hidden, hidden), decoder_layers=(hidden, hidden, hidden))
+    trainer = TrainerConfig(
+        steps=steps,
+        batch_size=64,
+        log_every=max(1, steps // 50),
+        checkpoint_every=max(1, steps // 5),
+        seed=config.seed,
+    )
+    print(f"\ndistilling the multi-clip policy: {steps} steps, hidden layers of {hidden}")
+    result = train_npmp(data, out, npmp, trainer, replace(default_sampler(), window=10))
+    dataset = RolloutDataset(data)
+    experts = dataset.expert_metrics("start")
+    dataset.close()
+    evaluation = PolicyEvaluationConfig(episodes=max(4, round(10 * config.scale)), init="start", seed=config.seed)
+    from distill.npmp import load_policy
+
+    rows = evaluate_multi_clip(load_policy(result.policy), sorted(experts), evaluation, progress=True)
+    return {
+        "decoder": str(result.decoder),
+        "policy": str(result.policy),
+        "steps": result.outcome.steps,
+        "final_loss": result.outcome.final_loss,
+        "history": str(out / "history.json"),
+        "multi_clip": rows,
+        "experts": experts,
+        "fraction_of_experts": fraction_of_experts(rows, experts),
+    }
+
+
+def _transfer(out: Path, decoder: str | None, config: QuickstartConfig) -> dict:
+    from hierarchy.transfer import TransferConfig, evaluate_transfer, train_transfer
+
+    steps = max(2048, round(config.transfer_steps * config.scale) // 2048 * 2048)
+    transfer = TransferConfig(
+        total_steps=steps,
+        n_envs=4,
+        steps_per_update=2048,
+        minibatch_size=256,
+        hidden_layers=(256, 256),
+        learning_rate=3e-4,
+        subprocess_envs=False,
+        checkpoint_every=2048,
+        seed=config.seed,
+        device="cpu",
+    )
+    label = "on the decoder" if decoder else "on joint targets (baseline)"
+    print(f"\nvelocity control {label}: {steps} steps")
+    policy = train_transfer("velocity_control", out, decoder, transfer, {"max_steps": 500})
+    evaluation = evaluate_transfer(policy, episodes=max(3, round(5 * config.scale)), seed=config.seed + 1000)
+    return {
+        "policy": str(policy),
+        "steps": steps,
+        "mean_return": evaluation.mean_return,
+        "mean_length": evaluation.mean_length,
+        "progress": str(out / "progress.csv"),
+    }
+
+
+def _record(policy: str, path: Path, config: QuickstartConfig) -> str:
+    from mocap_hierarchy.record import record
+
+    steps = max(10, round(config.record_steps * config.scale))
+    record("velocity_control", policy, path, seed=config.seed, overrides={"max_steps": steps})
+    return str(path)
+
+
+def _plots(out: Path, distilled: dict, transfer: dict) -> list[str]:
+    """PNG training curves: the distillation loss and both velocity-control runs."""
+    import csv
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    history = json.loads(Path(distilled["history"]).read_text())
+    figure, axis = plt.subplots(figsize=(5, 3.5))
+    axis.plot(history["step"], history["loss"])
+    axis.set(xlabel="optimiser step", ylabel="loss (NLL + 0.1 KL)", title="distillation")
+    paths = [_save_figure(figure, out / "distill_loss.png")]
+    figure, axis = plt.subplots(figsize=(5, 3.5))
+    for mode, run in transfer.items():
+        with open(run["progress"]) as f:
+            rows = [r for r in csv.DictReader(f) if r.get("rollout/ep_rew_mean")]
+        axis.plot(
+            [float(r["time/total_timesteps"]) for r in rows],
+            [float(r["rollout/ep_rew_mean"]) for r in rows],
+            label="decoder" if mode == "decoder" else "joint targets",
+        )
+    axis.set(xlabel="environment steps", ylabel="episode return", title="velocity control")
+    axis.legend()
+    paths.append(_save_figure(figure, out / "velocity_control.png"))
+    return paths
+
+
+def _save_figure(figure, path: Path) -> str:
+    import matplotlib.pyplot as plt
+
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, format="png", dpi=120, bbox_inches="tight")
+    plt.close(figure)
+    return str(path)
+
+
 def _print_summary(summary: dict) -> None:
     playback = {row["snippet"]: row for row in summary["playback"]}
     print(f"\n{'snippet':<26}{'playback reward':>16}{'length':>8}{'expert reward':>15}{'length':>8}")
@@ -195,6 +332,19 @@ def _print_summary(summary: dict) -> None:
         f"\nrollout dataset: {dataset['files']} files, {dataset['episodes']} episodes, {dataset['steps']} steps "
         f"in {dataset['folder']}"
     )
+    fraction = summary["distill"]["fraction_of_experts"]
+    print(
+        f"multi-clip policy ({summary['distill']['steps']} steps): {fraction['normalized_reward']:.3f} of the "
+        f"experts' normalised reward, {fraction['normalized_length']:.3f} of their length ({fraction['snippets']} "
+        "snippets, from the start)"
+    )
+    for mode, run in summary["transfer"].items():
+        print(
+            f"velocity control on {'the decoder' if mode == 'decoder' else 'joint targets'}: mean return "
+            f"{run['mean_return']:.1f}, mean length {run['mean_length']:.0f} steps ({run['steps']} training steps)"
+        )
+    print(f"recordings: {', '.join(summary['recordings'].values())} (mocap-hierarchy view FILE)")
+    print(f"plots: {', '.join(summary['plots'])}")
     print(
         f"tracking environment: {summary['env_steps_per_second']:.0f} env steps/s (one process); "
         f"quickstart took {summary['seconds'] / 60:.1f} min"

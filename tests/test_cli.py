@@ -1,4 +1,5 @@
 import json
+from pathlib import Path
 
 import pytest
 
@@ -44,6 +45,7 @@ def test_tasks_lists_the_registry(capsys):
 def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys):
     args = ["quickstart", "--out", str(tmp_path), "--episodes-per-snippet", "1", "--expert-steps", "2048"]
     args += ["--expert-snippets", "SYN_stand-0-181", "--rollouts-per-snippet", "1", "--workers", "1"]
+    args += ["--distill-steps", "20", "--distill-hidden", "32", "--transfer-steps", "2048", "--record-steps", "15"]
     assert main(args) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert len(summary["playback"]) == 24
@@ -52,5 +54,17 @@ def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys)
     assert summary["env_steps_per_second"] > 0
     assert summary["experts"][0]["snippet"] == "SYN_stand-0-181" and summary["experts"][0]["status"] == "ok"
     assert summary["dataset"]["files"] == 1 and summary["dataset"]["episodes"] == 2
+    from hierarchy import load_decoder
+    from tests.tasks.test_recording import frames, verify
+
+    assert load_decoder(summary["distill"]["decoder"]).spec.hidden_layers == (32, 32, 32)
+    assert summary["distill"]["steps"] == 20 and summary["distill"]["fraction_of_experts"]["snippets"] == 1
+    assert set(summary["transfer"]) == {"decoder", "joints"}
+    for mode, path in summary["recordings"].items():
+        verify(Path(path))
+        assert 0 < frames(Path(path))[0]["/plots/action"] <= 15, mode
+    assert "/plots/latent" in frames(Path(summary["recordings"]["decoder"]))[0]
+    for plot in summary["plots"]:
+        assert Path(plot).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert main(args) == 0  # a second run resumes: the expert is skipped, the dataset file kept
     assert "0 ok, 1 skipped, 0 failed" in capsys.readouterr().out
