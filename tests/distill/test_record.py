@@ -81,3 +81,19 @@ def test_view_explains_how_to_open_a_file_without_a_display(tmp_path, capsys, mo
     assert main(["view", str(out)]) == 0
     assert "rerun r.rrd" in capsys.readouterr().out
     assert main(["view", str(tmp_path / "missing.rrd")]) == 2
+
+
+def test_high_level_policy_over_a_decoder_records_latents_and_refuses_other_tasks(tmp_path, capsys):
+    from hierarchy.transfer import train_transfer
+    from tests.hierarchy.test_transfer import TINY
+
+    decoder_file = small_decoder().save(tmp_path / "decoder.safetensors")
+    policy_file = train_transfer("velocity_control", tmp_path / "vc", decoder_file, TINY, {"max_steps": 30}, False)
+    out = tmp_path / "vc.rrd"
+    status, text = record(capsys, "--task", "velocity_control", "--policy", str(policy_file), "--out", str(out))
+    assert status == 0, text
+    verify(out)
+    rows = frames(out)[0]
+    assert rows["/plots/latent"] == rows["/world/velocity/commanded"] == rows["/plots/action"] <= 30
+    status, text = record(capsys, "--task", "go_to_target", "--policy", str(policy_file), "--out", str(out))
+    assert status == 2 and "record it with --task velocity_control" in text
