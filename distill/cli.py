@@ -16,7 +16,7 @@ from distill.npmp_training import POLICY_FILE, default_sampler, train_npmp
 from distill.rollouts import RolloutConfig
 from distill.sampler import SamplerConfig
 from distill.trainer import TrainerConfig
-from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args
+from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args, file_in_folder
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -185,7 +185,7 @@ def _distill_eval(args: argparse.Namespace) -> None:
     from distill.npmp_evaluation import evaluate_multi_clip, fraction_of_experts
 
     config = dataclass_from_args(PolicyEvaluationConfig, args)
-    path = args.policy / POLICY_FILE if args.policy.is_dir() else args.policy
+    path = file_in_folder(args.policy, POLICY_FILE)
     policy = load_policy(path)
     experts = {}
     if args.data is not None:

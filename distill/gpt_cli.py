@@ -11,7 +11,7 @@ from distill.gpt_training import GPT_FILE, default_gpt_sampler, default_gpt_trai
 from distill.motion_completion import CompletionConfig
 from distill.sampler import SamplerConfig
 from distill.trainer import TrainerConfig
-from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args
+from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args, file_in_folder
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -62,7 +62,7 @@ def _complete(args: argparse.Namespace) -> None:
     from tasks.atomic import write_json
 
     config = dataclass_from_args(CompletionConfig, args)
-    path = args.gpt / GPT_FILE if args.gpt.is_dir() else args.gpt
+    path = file_in_folder(args.gpt, GPT_FILE)
     gpt = load_gpt(path)
     prompts = _prompts(args)
     results = complete_motions(gpt, prompts, config, clips=args.clips, progress=True)
@@ -88,7 +88,7 @@ def _prompts(args: argparse.Namespace) -> dict:
         from distill.npmp import load_policy
         from distill.npmp_training import POLICY_FILE
 
-        path = args.policy / POLICY_FILE if args.policy.is_dir() else args.policy
+        path = file_in_folder(args.policy, POLICY_FILE)
         policy = load_policy(path)
         if not args.snippets:
             raise ValueError("name the --snippets to complete when the multi-clip policy prompts")

@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 from hierarchy.transfer import TransferConfig
-from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args
+from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args, file_in_folder
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
@@ -96,7 +96,7 @@ def _train(args: argparse.Namespace) -> None:
 def _evaluate(args: argparse.Namespace) -> None:
     from hierarchy.transfer import POLICY_FILE, evaluate_transfer
 
-    path = args.policy / POLICY_FILE if args.policy.is_dir() else args.policy
+    path = file_in_folder(args.policy, POLICY_FILE)
     summary = evaluate_transfer(path, args.episodes, args.decoder, args.seed, args.max_steps)
     print(
         f"{summary.task}: return {summary.mean_return:.2f} +- {summary.std_return:.2f}, "

@@ -39,6 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
     record.add_argument("--episodes", type=int, default=1)
     record.add_argument("--seed", type=int, default=0)
     record.add_argument("--prompt", default=None, help="expert directory prompting a GPT (motion_completion)")
+    record.add_argument(
+        "--video", type=Path, default=None, help="also write an mp4 (needs MUJOCO_GL=egl or osmesa and the video extra)"
+    )
     record.add_argument("--set", nargs="+", default=[], metavar="FIELD=VALUE", help="task settings, e.g. max_steps=200")
     record.set_defaults(handler=_record)
 
@@ -64,9 +67,18 @@ def _record(args: argparse.Namespace) -> None:
     from mocap_hierarchy.record import record
 
     result = record(
-        args.task, args.policy, args.out, args.episodes, args.seed, parse_settings(args.set), prompt=args.prompt
+        args.task,
+        args.policy,
+        args.out,
+        args.episodes,
+        args.seed,
+        parse_settings(args.set),
+        prompt=args.prompt,
+        video=args.video,
     )
     print(f"recorded {result['episodes']} episode(s), {result['steps']} steps: {result['path']}")
+    if "video" in result:
+        print(f"video: {result['video']}")
     print(f"open it with: mocap-hierarchy view {result['path']}")
 
 
@@ -78,11 +90,13 @@ def _view(args: argparse.Namespace) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Runs the command line; returns the exit status."""
+    from tasks.video import VideoUnavailableError
+
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         args.handler(args)
-    except (ValueError, FileNotFoundError, KeyError) as error:
+    except (ValueError, FileNotFoundError, KeyError, VideoUnavailableError) as error:
         print(f"mocap-hierarchy {args.command}: error: {error}", file=sys.stderr)
         return 2
     return 0

@@ -13,6 +13,7 @@ import dataclasses
 import re
 import types
 import typing
+from pathlib import Path
 from typing import Any, TypeVar
 
 T = TypeVar("T")
@@ -102,3 +103,8 @@ def dataclass_from_args(cls: type[T], namespace: argparse.Namespace, base: T | N
             values[f.name] = tuple(value) if isinstance(value, list) else value
     values.update(fixed)
     return dataclasses.replace(base, **values) if base is not None else cls(**values)  # type: ignore[type-var]
+
+
+def file_in_folder(path: Path, name: str) -> Path:
+    """``path`` itself, or ``path / name`` when ``path`` is a folder (commands accept either)."""
+    return path / name if path.is_dir() else path

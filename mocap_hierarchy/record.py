@@ -188,14 +188,22 @@ def record(
     seed: int = 0,
     overrides: dict[str, Any] | None = None,
     prompt: str | None = None,
+    video: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
-    """Records ``episodes`` of ``policy`` on ``task`` into the ``.rrd`` file ``out``."""
+    """Records ``episodes`` of ``policy`` on ``task`` into the ``.rrd`` file ``out`` (and an mp4 when asked)."""
     from tasks.recording import record_rollout
 
     if Path(out).suffix != ".rrd":
         raise ValueError(f"the recording file must end in .rrd, got {out}")
     env, act, new_episode = build_rollout(task, policy, overrides, prompt, seed)
-    return record_rollout(env, act, out, episodes=episodes, seed=seed, on_reset=new_episode)
+    if video is not None:
+        from tasks.video import VideoRecorder
+
+        env = VideoRecorder(env, video)
+    result = record_rollout(env, act, out, episodes=episodes, seed=seed, on_reset=new_episode)
+    if video is not None:
+        result["video"] = str(video)
+    return result
 
 
 def view(path: str | os.PathLike) -> str:

@@ -15,11 +15,22 @@ from pathlib import Path
 from typing import Any
 
 
+def _read_umask() -> int:
+    current = os.umask(0)  # reading the umask means setting it: put it straight back (once, at import)
+    os.umask(current)
+    return current
+
+
+_UMASK = _read_umask()
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yields a temporary path to write; renames it to ``path`` on success.
 
-    The temporary file is removed if the block raises (or is interrupted).
+    The temporary file is removed if the block raises (or is interrupted). The
+    file ends up with the permissions of a plainly created one (``0o666`` less
+    the umask), not the owner-only mode of a temporary file.
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -27,6 +38,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     os.close(handle)
     try:
         yield Path(temporary)
+        os.chmod(temporary, 0o666 & ~_UMASK)
         os.replace(temporary, path)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
