@@ -15,7 +15,7 @@ from distill.npmp_evaluation import PolicyEvaluationConfig
 from distill.npmp_training import POLICY_FILE, default_sampler, train_npmp
 from distill.rollouts import RolloutConfig
 from distill.sampler import SamplerConfig
-from distill.trainer import TrainerConfig
+from distill.trainer import TrainerConfig, distributed_from_environment
 from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args, file_in_folder
 
 
@@ -173,6 +173,8 @@ def _distill_train(args: argparse.Namespace) -> None:
         dataclass_from_args(TrainerConfig, args),
         dataclass_from_args(SamplerConfig, args, base=default_sampler()),
     )
+    if not distributed_from_environment().is_main:  # under torchrun, rank 0 alone reports
+        return
     print(
         f"distilled {result.outcome.steps} steps (final loss {result.outcome.final_loss:.4g}); "
         f"decoder file: {result.decoder}; multi-clip policy: {result.policy}"

@@ -10,7 +10,7 @@ from distill.gpt import GptConfig
 from distill.gpt_training import GPT_FILE, default_gpt_sampler, default_gpt_trainer, train_gpt
 from distill.motion_completion import CompletionConfig
 from distill.sampler import SamplerConfig
-from distill.trainer import TrainerConfig
+from distill.trainer import TrainerConfig, distributed_from_environment
 from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args, file_in_folder
 
 
@@ -50,6 +50,8 @@ def _train(args: argparse.Namespace) -> None:
         dataclass_from_args(TrainerConfig, args, base=default_gpt_trainer()),
         dataclass_from_args(SamplerConfig, args, base=default_gpt_sampler(gpt)),
     )
+    if not distributed_from_environment().is_main:  # under torchrun, rank 0 alone reports
+        return
     print(
         f"trained the GPT ({result.parameters:,} parameters) for {result.outcome.steps} steps "
         f"(final loss {result.outcome.final_loss:.4g}): {result.model}"

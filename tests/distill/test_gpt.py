@@ -208,3 +208,22 @@ def test_files_of_other_kinds_or_mismatched_weights_are_refused(trained, tmp_pat
     save_file(load_file(str(result.model)), str(forged), metadata={METADATA_KEY: json.dumps(description)})
     with pytest.raises(GptFileError, match="do not fit the architecture"):
         load_gpt(forged)
+
+
+def test_torchrun_ddp_on_two_cpu_processes(rollout_dir, tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    out = tmp_path / "ddp"
+    command = [
+        sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", "29541",
+        "-m", "mocap_hierarchy", "gpt", "train", "--data", str(rollout_dir), "--out", str(out), "--steps", "6",
+        "--batch-size", "8", "--layers", "1", "--heads", "2", "--embedding-size", "16", "--block-size", "4",
+        "--log-every", "2", "--device", "cpu",
+    ]  # fmt: skip
+    environment = {**os.environ, "OMP_NUM_THREADS": "1"}
+    finished = subprocess.run(command, capture_output=True, text=True, timeout=300, env=environment)
+    assert finished.returncode == 0, finished.stderr[-3000:]
+    assert finished.stdout.count("parameters") == 2  # rank 0 alone prints the count and the result
+    assert load_gpt(out / "gpt.safetensors").spec.provenance["steps"] == 6
