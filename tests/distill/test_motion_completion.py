@@ -150,3 +150,18 @@ def test_gpt_train_command(rollout_dir, tmp_path, capsys):
     assert "parameters" in capsys.readouterr().out
     assert json.loads((tmp_path / "gpt.json").read_text())["sampler"]["window"] == 4  # the window follows the block
     assert (tmp_path / "gpt.safetensors").is_file()
+
+
+def test_the_multi_clip_policy_can_prompt(clip_library, tmp_path, capsys):
+    from tests.distill.test_record import small_multi_clip_policy
+
+    policy_file = small_multi_clip_policy().save(tmp_path / "policy.safetensors")
+    gpt_dir = tmp_path / "gpt"
+    random_gpt().save(gpt_dir / "gpt.safetensors")
+    args = ["gpt", "complete", "--gpt", str(gpt_dir), "--policy", str(policy_file), "--snippets", SNIPPET]
+    args += ["--episodes", "2", "--prompt-steps", "6", "--max-steps", "20", "--variants", "deterministic"]
+    assert main(args) == 0, capsys.readouterr().err
+    row = json.loads((gpt_dir / "completion.json").read_text())["results"][SNIPPET]["deterministic"]
+    assert row["episodes"] == 2 and row["max"] <= 14
+    assert main(["gpt", "complete", "--gpt", str(gpt_dir), "--policy", str(policy_file)]) == 2
+    assert "name the --snippets" in capsys.readouterr().err
