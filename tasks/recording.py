@@ -137,8 +137,10 @@ class RerunRecorder(gym.Wrapper):
             )
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
+        # Written under a temporary name; close() renames it, so an interrupted run leaves no half file.
+        self._temporary = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         self._stream = rr.RecordingStream(application_id)
-        self._stream.save(str(self.path))
+        self._stream.save(str(self._temporary))
         self._shapes = WalkerShapes(task.walker)
         self._ghost = mujoco.MjData(task.walker.model) if hasattr(type(task), "reference") else None
         self.steps = 0
@@ -164,10 +166,22 @@ class RerunRecorder(gym.Wrapper):
         return observation, reward, terminated, truncated, info
 
     def close(self) -> None:
-        """Flushes the file and closes the environment."""
+        """Finishes the file (renamed into place) and closes the environment."""
         self._stream.flush()
         self._stream.disconnect()
+        if self._temporary.is_file():
+            os.replace(self._temporary, self.path)
         super().close()
+
+    def discard(self) -> None:
+        """Drops the recording (no file is left) and closes the environment (discarding an inner recorder too)."""
+        self._stream.disconnect()
+        self._temporary.unlink(missing_ok=True)
+        inner = getattr(self.env, "discard", None)
+        if inner is not None:
+            inner()
+        else:
+            self.env.close()
 
     # Logging ---------------------------------------------------------------------------
 
@@ -250,6 +264,8 @@ def record_rollout(
                 total += float(reward)
                 done = terminated or truncated
             returns.append(total)
-    finally:
-        recorder.close()
+    except BaseException:
+        recorder.discard()
+        raise
+    recorder.close()
     return {"path": str(recorder.path), "steps": recorder.steps, "episodes": episodes, "returns": returns}

@@ -107,6 +107,11 @@ class VideoRecorder(gym.Wrapper):
         self._renderer.close()
         super().close()
 
+    def discard(self) -> None:
+        """Drops the frames (no file is written) and closes the environment."""
+        self._frames.clear()
+        self.close()
+
 
 def _encode(av, frames: list[np.ndarray], path: Path) -> None:
     height, width = frames[0].shape[:2]

@@ -90,3 +90,18 @@ def test_recorder_refuses_environments_without_a_walker(tmp_path):
 
     with pytest.raises(TypeError, match="not a walker task"):
         RerunRecorder(gym.make("CartPole-v1"), tmp_path / "x.rrd")
+
+
+def test_an_interrupted_recording_leaves_no_file(tmp_path):
+    env = tasks.make("go_to_target", max_steps=50)
+    calls = []
+
+    def failing_policy(observation):
+        calls.append(1)
+        if len(calls) == 5:
+            raise KeyboardInterrupt
+        return np.zeros(56)
+
+    with pytest.raises(KeyboardInterrupt):
+        record_rollout(env, failing_policy, tmp_path / "broken.rrd")
+    assert list(tmp_path.iterdir()) == []
