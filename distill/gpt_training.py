@@ -56,14 +56,6 @@ def default_gpt_sampler(gpt: GptConfig | None = None) -> SamplerConfig:
     return SamplerConfig(window=(gpt or GptConfig()).block_size, weighting="bc", normalize_observations=True)
 
 
-def build_gpt(windows: WindowDataset, gpt: GptConfig, group: str = "states") -> MotionGpt:
-    """A fresh GPT whose inputs and normaliser come from the sampler's ``group``."""
-    means, stds = windows.statistics()
-    sizes = windows.dataset.require_observables(windows.groups[group], "the GPT")
-    spec = GptSpec(config=asdict(gpt), observation_sizes=sizes, action_size=windows.action_size)
-    return MotionGpt(spec, means[group], stds[group])
-
-
 def train_gpt(
     data: str | os.PathLike,
     out: str | os.PathLike,
@@ -93,9 +85,11 @@ def train_gpt(
     out = Path(out)
     dataset = RolloutDataset(data)
     try:
-        dataset.require_observables(gpt.observables, "the GPT")
+        sizes = dataset.require_observables(gpt.observables, "the GPT")
         windows = WindowDataset(dataset, {"states": gpt.observables}, sampler)
-        model = build_gpt(windows, gpt)
+        means, stds = windows.statistics()
+        spec = GptSpec(config=asdict(gpt), observation_sizes=sizes, action_size=windows.action_size)
+        model = MotionGpt(spec, means["states"], stds["states"])
         count = model.parameter_count()
         place = distributed_from_environment()
         if progress and place.is_main:

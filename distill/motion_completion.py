@@ -23,6 +23,7 @@ from tqdm.auto import tqdm
 from distill.gpt import MotionGpt
 from tasks.lockstep import Lockstep
 from tasks.motion_completion import MotionCompletionConfig, MotionCompletionEnv
+from tasks.observables import flat_batch
 from tasks.walker import build_walker
 
 VARIANT_NOISE = {"deterministic": 0.0, "stochastic": 0.1}
@@ -116,23 +117,64 @@ class MultiClipPrompt:
 
     def __init__(self, policy, rows: int) -> None:
         self.policy = policy
-        self.encoder_keys = list(policy.spec.encoder_sizes)
-        self.decoder_keys = list(policy.spec.decoder_sizes)
-        self.keys = tuple(dict.fromkeys([*self.encoder_keys, *self.decoder_keys]))
+        self.keys = policy.spec.observation_keys
         self.ref_steps = tuple(policy.spec.ref_steps)
         self._z = np.zeros((rows, policy.config.latent_size), dtype=np.float32)
 
     def act(self, observations, envs, rows):
         """Tracks the reference with the encoder's mean latent (the policy's own deterministic step)."""
         del envs
-        encoder_in, decoder_in = _flat(observations, self.encoder_keys), _flat(observations, self.decoder_keys)
-        actions, z = self.policy.act(encoder_in, decoder_in, self._z[rows])
-        self._z[rows] = z
+        actions, self._z[rows] = self.policy.act_batch(observations, self._z[rows])
         return actions
 
     def reset(self, row: int) -> None:
         """The next episode of ``row`` starts from ``z = 0``."""
         self._z[row] = 0.0
+
+
+class CompletionController:
+    """Who acts when: the prompt policy during the prompt, the GPT after it.
+
+    The GPT reads every state from each episode's first step (prompt states
+    too), so its context is full when it takes over.
+
+    Args:
+        gpt: The GPT, in eval mode.
+        prompt: The prompt policy.
+        envs: The motion-completion environments (rows of the batches).
+        context: ``cache`` (one token per step) or ``window`` (MoCapAct's recompute).
+    """
+
+    def __init__(self, gpt: MotionGpt, prompt: PromptPolicy, envs: list[MotionCompletionEnv], context: str) -> None:
+        self.gpt, self.prompt, self.envs, self.context = gpt, prompt, envs, context
+        self.keys = tuple(dict.fromkeys([*gpt.spec.observation_sizes, *prompt.keys]))
+        """Observables a batch must hold."""
+        self._cache = gpt.new_cache(len(envs))
+        self._histories: list[deque] = [deque(maxlen=gpt.config.block_size) for _ in envs]
+
+    def act(self, active: list[int], batch: dict[str, np.ndarray]) -> np.ndarray:
+        """Actions ``(len(active), 56)`` for the environments ``active`` from their batched observations."""
+        states = flat_batch(batch, self.gpt.spec.observation_sizes)
+        prompting = np.array([self.envs[i].in_prompt for i in active], dtype=bool)
+        if self.context == "cache":  # every state enters the cache, prompt states too
+            actions = self.gpt.step(states, self._cache, rows=np.asarray(active))
+        else:
+            for row, i in enumerate(active):
+                self._histories[i].append(states[row])
+            actions = np.zeros((len(active), self.gpt.spec.action_size))
+            completing = np.flatnonzero(~prompting)
+            if len(completing):
+                actions[completing] = _window_actions(self.gpt, [self._histories[active[r]] for r in completing])
+        if prompting.any():
+            rows = [i for i, p in zip(active, prompting, strict=True) if p]
+            actions[prompting] = self.prompt.act({k: v[prompting] for k, v in batch.items()}, self.envs, rows)
+        return actions
+
+    def new_episode(self, env: int) -> None:
+        """Forgets the history of ``env``: its next state starts a new episode."""
+        self._cache.reset([env])
+        self._histories[env].clear()
+        self.prompt.reset(env)
 
 
 @dataclass
@@ -189,49 +231,28 @@ def complete_motions(
     for snippet, variant in tqdm(jobs, desc="motion completion", unit="run", disable=not progress):
         n_envs = min(config.n_envs, config.episodes)
         prompt = prompts[snippet](n_envs)
-        keys = tuple(dict.fromkeys([*gpt.spec.observation_sizes, *prompt.keys]))
         environment = MotionCompletionConfig(
             snippets=(snippet,),
             clips=clips,
             prompt_steps=config.prompt_steps,
             max_steps=config.max_steps,
-            observables=keys,
+            observables=tuple(dict.fromkeys([*gpt.spec.observation_sizes, *prompt.keys])),
             ref_steps=prompt.ref_steps,
             action_noise=VARIANT_NOISE[variant],
         )
         envs = [MotionCompletionEnv(environment, walker=walker) for _ in range(n_envs)]
         seeds = [(config.seed * 1_000_003 + i) * 2 + (variant == "stochastic") for i in range(n_envs)]
-        outcome = _run(gpt, prompt, envs, Lockstep(envs, config.episodes, seeds), config.context)
+        controller = CompletionController(gpt, prompt, envs, config.context)
+        outcome = _run(controller, Lockstep(envs, config.episodes, seeds))
         results.setdefault(snippet, {})[variant] = outcome.summary()
     return results
 
 
-def _run(
-    gpt: MotionGpt, prompt: PromptPolicy, envs: list[MotionCompletionEnv], lockstep: Lockstep, context: str
-) -> SnippetCompletion:
-    gpt_keys = list(gpt.spec.observation_sizes)
-    keys = list(dict.fromkeys([*gpt_keys, *prompt.keys]))
-    cache = gpt.new_cache(len(envs))
-    histories: list[deque] = [deque(maxlen=gpt.config.block_size) for _ in envs]
+def _run(controller: CompletionController, lockstep: Lockstep) -> SnippetCompletion:
     outcome = SnippetCompletion([], 0, 0)
     while lockstep.active:
         active = list(lockstep.active)
-        batch = lockstep.batch(keys)
-        states = _flat(batch, gpt_keys)
-        prompting = [row for row, i in enumerate(active) if envs[i].in_prompt]
-        if context == "cache":  # every state enters the cache, prompt states too
-            actions = gpt.step(states, cache, rows=np.asarray(active))
-        else:
-            for row, i in enumerate(active):
-                histories[i].append(states[row])
-            actions = np.zeros((len(active), gpt.spec.action_size))
-            completing = [row for row in range(len(active)) if row not in set(prompting)]
-            if completing:
-                actions[completing] = _window_actions(gpt, [histories[active[row]] for row in completing])
-        if prompting:
-            rows = [active[row] for row in prompting]
-            sub_batch = {k: v[prompting] for k, v in batch.items()}
-            actions[prompting] = prompt.act(sub_batch, envs, rows)
+        actions = controller.act(active, lockstep.batch(controller.keys))
         for transition in lockstep.step(actions):
             if not transition.done:
                 continue
@@ -239,9 +260,7 @@ def _run(
             outcome.lengths.append(int(info["completion_length"]))
             outcome.fell_during_prompt += bool(info["fell_during_prompt"])
             outcome.reached_limit += bool(transition.truncated)
-            cache.reset([transition.env])
-            histories[transition.env].clear()
-            prompt.reset(transition.env)
+            controller.new_episode(transition.env)
     return outcome
 
 
@@ -253,10 +272,6 @@ def _window_actions(gpt: MotionGpt, histories: list[deque]) -> np.ndarray:
         rows = np.flatnonzero(lengths == length)
         actions[rows] = gpt.predict(np.stack([np.stack(histories[r]) for r in rows]))
     return actions
-
-
-def _flat(batch: dict[str, np.ndarray], keys: list[str]) -> np.ndarray:
-    return np.concatenate([batch[k].reshape(len(batch[k]), -1) for k in keys], axis=1)
 
 
 def completion_table(results: dict[str, dict[str, dict[str, float]]]) -> str:

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,7 @@ from torch import nn
 
 from hierarchy.decoder import ACTIVATIONS, DecoderSpec, LatentDecoder, decoder_network, mlp, provenance
 from hierarchy.described_file import read_described, write_described
-from tasks.observables import DECODER, OBSERVABLE_SETS
+from tasks.observables import DECODER, OBSERVABLE_SETS, flat_batch
 
 POLICY_FORMAT = "mocap_hierarchy.multi_clip_policy"
 POLICY_SCHEMA_VERSION = 1
@@ -98,6 +99,11 @@ class NpmpSpec:
     ref_steps: tuple[int, ...]
     action_size: int = 56
     provenance: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def observation_keys(self) -> tuple[str, ...]:
+        """Every observable the policy reads: the encoder's, then the decoder's others."""
+        return tuple(dict.fromkeys([*self.encoder_sizes, *self.decoder_sizes]))
 
     @property
     def npmp(self) -> NpmpConfig:
@@ -229,6 +235,13 @@ class NpmpPolicy(nn.Module):
         z, _ = self.encode(encoder_in, torch.as_tensor(z_previous, dtype=torch.float32, device=device))
         actions = self.decode(decoder_in, z).clamp(-1.0, 1.0)
         return actions.double().cpu().numpy(), z.cpu().numpy()
+
+    def act_batch(
+        self, observations: Mapping[str, np.ndarray], z_previous: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`act` on batched observation dicts ``{key: (N, size)}`` (flattened in the spec's key order)."""
+        encoder_in = flat_batch(observations, self.spec.encoder_sizes)
+        return self.act(encoder_in, flat_batch(observations, self.spec.decoder_sizes), z_previous)
 
     # Export and files -------------------------------------------------------------
 

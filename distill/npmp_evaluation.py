@@ -53,9 +53,7 @@ def evaluate_multi_clip(
         ``{snippet: {"normalized_reward", "normalized_length", "episodes"}}``.
     """
     walker = build_walker()
-    encoder_keys = list(policy.spec.encoder_sizes)
-    decoder_keys = list(policy.spec.decoder_sizes)
-    keys = tuple(dict.fromkeys([*encoder_keys, *decoder_keys]))
+    keys = policy.spec.observation_keys
     latent = policy.config.latent_size
     results = {}
     for snippet in tqdm(snippets, desc="evaluating multi-clip policy", unit="snippet", disable=not progress):
@@ -74,10 +72,7 @@ def evaluate_multi_clip(
         rewards, lengths = [], []
         while lockstep.active:
             active = list(lockstep.active)
-            batch = lockstep.batch(keys)
-            encoder_in, decoder_in = _flat(batch, encoder_keys), _flat(batch, decoder_keys)
-            actions, z_new = policy.act(encoder_in, decoder_in, z[active])
-            z[active] = z_new
+            actions, z[active] = policy.act_batch(lockstep.batch(keys), z[active])
             for transition in lockstep.step(actions):
                 if transition.done:
                     rewards.append(transition.info["normalized_episode_reward"])
@@ -89,10 +84,6 @@ def evaluate_multi_clip(
             "episodes": len(rewards),
         }
     return results
-
-
-def _flat(batch: dict[str, np.ndarray], keys: list[str]) -> np.ndarray:
-    return np.concatenate([batch[k].reshape(len(batch[k]), -1) for k in keys], axis=1)
 
 
 def fraction_of_experts(

@@ -95,46 +95,32 @@ def _require_task(task: str, allowed: tuple[str, ...], what: str) -> None:
         raise ValueError(f"{what} drives the tasks {', '.join(allowed)}, not {task!r}")
 
 
+def _batched(observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    return {k: v[None] for k, v in observation.items()}
+
+
+def _single(prompt, env: gym.Env) -> Rollout:
+    """A batched prompt policy (:mod:`distill.motion_completion`) driving one environment."""
+    unwrapped = env.unwrapped
+    return env, lambda observation: prompt.act(_batched(observation), [unwrapped], [0])[0], lambda: prompt.reset(0)
+
+
 def _expert(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
     from distill.expert_policy import load_expert
+    from distill.motion_completion import ExpertPrompt
 
     _require_task(task, TRACKING_TASKS, "an expert")
-    expert = load_expert(path)
-    residual = expert.spec.residual_actions
-    settings = {"snippets": (str(expert.spec.snippet),), **overrides}
-    if task != "motion_completion":
-        settings.setdefault("residual_actions", residual)
-    env = tasks.make(task, **settings)
-    unwrapped: Any = env.unwrapped
-
-    def act(observation):
-        action = expert.mean_actions({k: v[None] for k, v in observation.items()})[0]
-        if residual and task == "motion_completion":
-            action = np.clip(action + unwrapped.reference_actuation(), -1.0, 1.0)
-        return action
-
-    return env, act, None
+    prompt = ExpertPrompt(load_expert(path))  # makes residual actions absolute itself
+    return _single(prompt, tasks.make(task, **{"snippets": (str(prompt.expert.spec.snippet),), **overrides}))
 
 
 def _multi_clip(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
+    from distill.motion_completion import MultiClipPrompt
     from distill.npmp import load_policy
 
     _require_task(task, ("tracking",), "the multi-clip policy")
-    policy = load_policy(path)
-    encoder_keys, decoder_keys = list(policy.spec.encoder_sizes), list(policy.spec.decoder_sizes)
-    keys = tuple(dict.fromkeys([*encoder_keys, *decoder_keys]))
-    env = tasks.make(task, **{"ref_steps": policy.spec.ref_steps, "observables": keys, **overrides})
-    z = np.zeros((1, policy.config.latent_size), dtype=np.float32)
-
-    def act(observation):
-        flat = [np.concatenate([observation[k] for k in keys])[None] for keys in (encoder_keys, decoder_keys)]
-        actions, z[:] = policy.act(flat[0], flat[1], z)
-        return actions[0]
-
-    def new_episode() -> None:
-        z[:] = 0.0  # the latent starts at zero in every episode
-
-    return env, act, new_episode
+    prompt = MultiClipPrompt(load_policy(path), rows=1)
+    return _single(prompt, tasks.make(task, **{"ref_steps": prompt.ref_steps, "observables": prompt.keys, **overrides}))
 
 
 def _task_policy(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
@@ -152,13 +138,13 @@ def _task_policy(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
         facts.get("max_latent", 3.0),
         facts.get("steps_per_latent", 1),
     )
-    return env, lambda observation: policy.act({k: v[None] for k, v in observation.items()})[0], None
+    return env, lambda observation: policy.act(_batched(observation))[0], None
 
 
 def _gpt(task: str, path: Path, overrides: dict[str, Any], prompt: str | None) -> Rollout:
     from distill.expert_policy import load_expert
     from distill.gpt import load_gpt
-    from distill.motion_completion import ExpertPrompt
+    from distill.motion_completion import CompletionController, ExpertPrompt
 
     _require_task(task, ("motion_completion",), "the GPT")
     if prompt is None:
@@ -167,17 +153,8 @@ def _gpt(task: str, path: Path, overrides: dict[str, Any], prompt: str | None) -
     expert = ExpertPrompt(load_expert(prompt))
     keys = tuple(dict.fromkeys([*gpt.spec.observation_sizes, *expert.keys]))
     env = tasks.make(task, **{"snippets": (str(expert.expert.spec.snippet),), "observables": keys, **overrides})
-    unwrapped: Any = env.unwrapped
-    cache = gpt.new_cache(1)
-    gpt_keys = list(gpt.spec.observation_sizes)
-
-    def act(observation):
-        gpt_action = gpt.step(np.concatenate([observation[k] for k in gpt_keys])[None], cache)[0]
-        if unwrapped.in_prompt:
-            return expert.act({k: v[None] for k, v in observation.items()}, [unwrapped], [0])[0]
-        return gpt_action
-
-    return env, act, cache.reset
+    controller = CompletionController(gpt, expert, [env.unwrapped], context="cache")  # type: ignore[list-item]
+    return env, lambda observation: controller.act([0], _batched(observation))[0], lambda: controller.new_episode(0)
 
 
 def record(

@@ -25,8 +25,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numpy as np
-
 from tasks.observables import OBSERVABLE_SETS
 from tasks.simulation import disallowed_contact
 from tasks.tracking import ClipTrackingEnv, TrackingConfig
@@ -98,8 +96,7 @@ class MotionCompletionEnv(ClipTrackingEnv):
                     f"the prompt ({config.prompt_steps} steps) is longer than snippet {reference.snippet}, which "
                     f"has {reference.last_step} steps to track; use a shorter --prompt-steps or longer snippets"
                 )
-        self._body_geoms = np.setdiff1d(self.walker.walker_geoms, self.walker.foot_geoms)
-        self._ground_geoms = np.array([self.walker.floor_geom])
+        self._body_geoms, self._ground_geoms = self.walker.fall_geoms()
 
     @property
     def in_prompt(self) -> bool:

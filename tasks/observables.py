@@ -8,7 +8,7 @@ on tracking data sees identical inputs in any downstream task.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 
 import mujoco
 import numpy as np
@@ -187,6 +187,11 @@ class Proprioception:
     def read_all(self, data: mujoco.MjData, keys: Iterable[str]) -> dict[str, np.ndarray]:
         """Several observables (only proprioceptive keys)."""
         return {k: self._readers[k](data) for k in keys}
+
+
+def flat_batch(batch: Mapping[str, np.ndarray], keys: Iterable[str]) -> np.ndarray:
+    """Batched observations ``{key: (N, ...)}`` concatenated in ``keys`` order: ``(N, total size)``."""
+    return np.concatenate([np.asarray(batch[k]).reshape(len(batch[k]), -1) for k in keys], axis=1)
 
 
 def observation_sizes(keys: Sequence[str], ref_steps: Sequence[int] | np.ndarray = ()) -> dict[str, int]:

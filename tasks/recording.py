@@ -38,30 +38,38 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 import rerun as rr
+from scipy.spatial.transform import Rotation
 
 from tasks.walker import CONTROL_TIMESTEP, WalkerModel
 
 WALKER_COLOUR = (200, 140, 90, 255)
 GHOST_COLOUR = (90, 160, 230, 70)
 TARGET_COLOUR = (230, 60, 60, 255)
-ENTITIES = ("world/walker", "plots/reward", "plots/action", "plots/episode")
-"""Entities every recording has (others depend on the task)."""
 
 
 class WalkerShapes:
-    """The walker's geoms as rerun shapes, posed from a ``MjData``.
+    """The walker's geoms as rerun shapes (capsules, and spheres/ellipsoids), posed from a ``MjData``.
 
     Args:
         walker: The compiled walker.
+
+    Raises:
+        ValueError: The walker has geoms of another type (nothing would draw them).
     """
 
     def __init__(self, walker: WalkerModel) -> None:
         model = walker.model
         geoms = np.asarray(walker.walker_geoms)
         kinds = model.geom_type[geoms]
-        self._capsules = geoms[kinds == mujoco.mjtGeom.mjGEOM_CAPSULE]
-        self._round = geoms[np.isin(kinds, (mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_ELLIPSOID))]
-        self._boxes = geoms[kinds == mujoco.mjtGeom.mjGEOM_BOX]
+        capsule, round_kinds = (
+            mujoco.mjtGeom.mjGEOM_CAPSULE,
+            (mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_ELLIPSOID),
+        )
+        other = sorted({int(k) for k in kinds} - {int(capsule), *map(int, round_kinds)})
+        if other:
+            raise ValueError(f"the walker has geoms of MuJoCo types {other}, which recordings cannot draw")
+        self._capsules = geoms[kinds == capsule]
+        self._round = geoms[np.isin(kinds, round_kinds)]
         size = model.geom_size
         self._capsule_radius = size[self._capsules, 0]
         self._capsule_half = size[self._capsules, 1]
@@ -69,50 +77,31 @@ class WalkerShapes:
         spheres = model.geom_type[self._round] == mujoco.mjtGeom.mjGEOM_SPHERE
         round_sizes[spheres] = round_sizes[spheres, :1]  # a sphere's size is its radius alone
         self._round_half_sizes = round_sizes
-        self._box_half_sizes = size[self._boxes]
 
     def log(self, stream: rr.RecordingStream, path: str, data: mujoco.MjData, colour: tuple[int, ...]) -> None:
         """Logs the geoms at their poses in ``data`` under ``path``."""
-        if len(self._capsules):
-            rotation = data.geom_xmat[self._capsules].reshape(-1, 3, 3)
-            axis = rotation[:, :, 2]
-            bottom = data.geom_xpos[self._capsules] - axis * self._capsule_half[:, None]
-            stream.log(
-                f"{path}/capsules",
-                rr.Capsules3D(
-                    lengths=2 * self._capsule_half,
-                    radii=self._capsule_radius,
-                    translations=bottom,
-                    quaternions=_quaternions_xyzw(rotation),
-                    colors=[colour],
-                ),
-            )
-        for name, geoms, half_sizes in (
-            ("ellipsoids", self._round, self._round_half_sizes),
-            ("boxes", self._boxes, self._box_half_sizes),
-        ):
-            if not len(geoms):
-                continue
-            archetype = rr.Ellipsoids3D if name == "ellipsoids" else rr.Boxes3D
-            stream.log(
-                f"{path}/{name}",
-                archetype(
-                    half_sizes=half_sizes,
-                    centers=data.geom_xpos[geoms],
-                    quaternions=_quaternions_xyzw(data.geom_xmat[geoms].reshape(-1, 3, 3)),
-                    colors=[colour],
-                    fill_mode="solid",
-                ),
-            )
-
-
-def _quaternions_xyzw(rotations: np.ndarray) -> np.ndarray:
-    out = np.empty((len(rotations), 4))
-    quaternion = np.empty(4)
-    for i, rotation in enumerate(rotations):
-        mujoco.mju_mat2Quat(quaternion, rotation.ravel())
-        out[i] = quaternion[[1, 2, 3, 0]]
-    return out
+        rotation = data.geom_xmat[self._capsules].reshape(-1, 3, 3)
+        bottom = data.geom_xpos[self._capsules] - rotation[:, :, 2] * self._capsule_half[:, None]
+        stream.log(
+            f"{path}/capsules",
+            rr.Capsules3D(
+                lengths=2 * self._capsule_half,
+                radii=self._capsule_radius,
+                translations=bottom,
+                quaternions=Rotation.from_matrix(rotation).as_quat(),  # (x, y, z, w), rerun's order
+                colors=[colour],
+            ),
+        )
+        stream.log(
+            f"{path}/ellipsoids",
+            rr.Ellipsoids3D(
+                half_sizes=self._round_half_sizes,
+                centers=data.geom_xpos[self._round],
+                quaternions=Rotation.from_matrix(data.geom_xmat[self._round].reshape(-1, 3, 3)).as_quat(),
+                colors=[colour],
+                fill_mode="solid",
+            ),
+        )
 
 
 class RerunRecorder(gym.Wrapper):

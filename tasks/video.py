@@ -86,11 +86,6 @@ class VideoRecorder(gym.Wrapper):
         self._camera.distance, self._camera.elevation, self._camera.azimuth = distance, -15.0, 135.0
         self._frames: list[np.ndarray] = []
 
-    @property
-    def frames(self) -> int:
-        """Frames rendered so far (one per step)."""
-        return len(self._frames)
-
     def step(self, action):
         """Steps the environment and renders the frame after the step."""
         result = self.env.step(action)

@@ -137,6 +137,10 @@ class WalkerModel:
         observable = np.asarray(mocap_joints)[..., self.mocap_to_observable]
         return (2.0 * observable - self.actuation_offset) / self.actuation_scale
 
+    def fall_geoms(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(walker geoms other than the feet, ground geoms)``: a contact between the two is a fall."""
+        return np.setdiff1d(self.walker_geoms, self.foot_geoms), np.array([self.floor_geom])
+
     def new_data(self) -> mujoco.MjData:
         """A fresh ``MjData`` for this model."""
         return mujoco.MjData(self.model)

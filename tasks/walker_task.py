@@ -68,8 +68,7 @@ class WalkerTaskEnv(gym.Env):
             {k: gym.spaces.Box(-np.inf, np.inf, (n,), np.float64) for k, n in sizes.items()}
         )
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.walker.num_joints,), np.float64)
-        self._body_geoms = np.setdiff1d(self.walker.walker_geoms, self.walker.foot_geoms)
-        self._ground_geoms = np.array([self.walker.floor_geom])
+        self._body_geoms, self._ground_geoms = self.walker.fall_geoms()
         self._steps = 0
         self._episode_active = False
 
