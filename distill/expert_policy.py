@@ -10,7 +10,6 @@ saved as ``expert.json`` + ``expert.safetensors`` (see :mod:`distill.expert_file
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
 from dataclasses import asdict, dataclass, field
@@ -22,6 +21,8 @@ from safetensors.torch import load_file, save_file
 from torch import nn
 
 from distill.expert_files import EXPERT_FORMAT, EXPERT_FORMAT_VERSION, ExpertDir, ExpertFilesError
+from hierarchy.decoder import hidden_stack
+from hierarchy.task_policy import sb3_policy_layout
 from tasks.atomic import atomic_path, write_json
 
 
@@ -99,11 +100,11 @@ class ExpertOutput:
     values: np.ndarray
 
 
-def _mlp(sizes: list[int]) -> nn.Sequential:
-    layers: list[nn.Module] = []
-    for size_in, size_out in itertools.pairwise(sizes):
-        layers += [nn.Linear(size_in, size_out), nn.Tanh()]
-    return nn.Sequential(*layers)
+def gaussian_log_prob(sample: np.ndarray, mean: np.ndarray, std: float) -> np.ndarray:
+    """Log-density of ``(N, D)`` samples under independent Gaussians of one standard deviation: ``(N,)``."""
+    return -0.5 * np.sum(((sample - mean) / std) ** 2, axis=1) - mean.shape[1] * (
+        math.log(std) + 0.5 * math.log(2 * math.pi)
+    )
 
 
 class ExpertPolicy(nn.Module):
@@ -121,8 +122,8 @@ class ExpertPolicy(nn.Module):
         self.keys = sorted(spec.observation_sizes)
         size = sum(spec.observation_sizes.values())
         sizes = [size, *spec.hidden_layers]
-        self.policy_net = _mlp(sizes)
-        self.value_net = _mlp(sizes)
+        self.policy_net = hidden_stack(size, spec.hidden_layers, "tanh")
+        self.value_net = hidden_stack(size, spec.hidden_layers, "tanh")
         self.action = nn.Linear(sizes[-1], spec.action_size)
         self.value = nn.Linear(sizes[-1], 1)
         self._mean = {k: np.asarray(obs_mean[k], dtype=np.float64) for k in self.keys}
@@ -130,6 +131,21 @@ class ExpertPolicy(nn.Module):
         self._scale = {k: 1.0 / np.sqrt(self._var[k] + spec.obs_epsilon) for k in self.keys}
         self.eval()
         self.requires_grad_(False)
+
+    @property
+    def residual_actions(self) -> bool:
+        """Whether actions are offsets from the reference pose."""
+        return self.spec.residual_actions
+
+    @property
+    def gamma(self) -> float:
+        """Discount factor of its training (for the rollouts' advantages)."""
+        return self.spec.gamma
+
+    @property
+    def gae_lambda(self) -> float:
+        """GAE parameter of its training."""
+        return self.spec.gae_lambda
 
     def features(self, observations: dict[str, np.ndarray]) -> torch.Tensor:
         """Normalised, clipped, concatenated observations ``(N, D)`` (batched inputs)."""
@@ -161,13 +177,10 @@ class ExpertPolicy(nn.Module):
         value = self.value(self.value_net(features))[:, 0].double().numpy()
         std = self.spec.action_std
         sample = mean if rng is None else mean + std * rng.standard_normal(mean.shape)
-        log_prob = -0.5 * np.sum(((sample - mean) / std) ** 2, axis=1) - mean.shape[1] * (
-            math.log(std) + 0.5 * math.log(2 * math.pi)
-        )
         return ExpertOutput(
             actions=np.clip(sample, -1.0, 1.0),
             mean_actions=np.clip(mean, -1.0, 1.0),
-            log_probs=log_prob,
+            log_probs=gaussian_log_prob(sample, mean, std),
             values=value * math.sqrt(self.spec.return_variance + self.spec.reward_epsilon),
         )
 
@@ -215,10 +228,7 @@ def policy_from_sb3(model, vecnormalize, spec_fields: dict) -> ExpertPolicy:
         vecnormalize: The ``VecNormalize`` whose statistics the policy was trained with.
         spec_fields: ``snippet``, ``residual_actions``, ``action_std`` and ``provenance``.
     """
-    observation_space = model.observation_space
-    sizes = {k: int(np.prod(space.shape)) for k, space in observation_space.spaces.items()}
-    net_arch = model.policy.net_arch
-    layers = tuple(net_arch["pi"] if isinstance(net_arch, dict) else net_arch)
+    sizes, layers = sb3_policy_layout(model)
     spec = ExpertSpec(
         snippet=spec_fields["snippet"],
         observation_sizes=dict(sorted(sizes.items())),

@@ -411,8 +411,7 @@ class MotionGpt(nn.Module):
         tensors = {f"net.{k}": v for k, v in self.state_dict().items() if not k.startswith("observation_")}
         tensors["observation_mean"] = self.observation_mean
         tensors["observation_std"] = self.observation_std
-        description = {"format": GPT_FORMAT, "schema_version": GPT_SCHEMA_VERSION, **asdict(self.spec)}
-        return write_described(path, tensors, description)
+        return write_described(path, tensors, GPT_FORMAT, GPT_SCHEMA_VERSION, asdict(self.spec))
 
 
 def _initialise(module: nn.Module) -> None:

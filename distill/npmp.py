@@ -257,8 +257,7 @@ class NpmpPolicy(nn.Module):
 
     def save(self, path: str | os.PathLike) -> Path:
         """Writes the whole policy (weights, normalisers, :class:`NpmpSpec`) atomically."""
-        description = {"format": POLICY_FORMAT, "schema_version": POLICY_SCHEMA_VERSION, **asdict(self.spec)}
-        return write_described(path, dict(self.state_dict()), description)
+        return write_described(path, dict(self.state_dict()), POLICY_FORMAT, POLICY_SCHEMA_VERSION, asdict(self.spec))
 
 
 def load_policy(path: str | os.PathLike) -> NpmpPolicy:

@@ -24,7 +24,7 @@ from tqdm.auto import tqdm
 
 from distill import dataset_schema as schema
 from distill.expert_files import find_experts
-from distill.expert_policy import ExpertOutput, load_expert
+from distill.expert_policy import ExpertOutput, gaussian_log_prob, load_expert
 from distill.fanout import Job
 from mocap_hierarchy import __version__
 from tasks.atomic import atomic_path
@@ -41,27 +41,25 @@ class RolloutPolicy(Protocol):
     """What a rollout needs from an expert (``ExpertPolicy`` and ``PlaybackPolicy`` fit)."""
 
     keys: list[str]
-    residual_actions: bool
-    gamma: float
-    gae_lambda: float
+
+    @property
+    def residual_actions(self) -> bool:
+        """Whether actions are offsets from the reference pose."""
+        ...
+
+    @property
+    def gamma(self) -> float:
+        """Discount factor for the advantages."""
+        ...
+
+    @property
+    def gae_lambda(self) -> float:
+        """GAE parameter."""
+        ...
 
     def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
         """Batched actions (see ``ExpertPolicy.act``)."""
         ...
-
-
-class _ExpertAdapter:
-    """Presents an ``ExpertPolicy`` through the :class:`RolloutPolicy` attributes."""
-
-    def __init__(self, expert) -> None:
-        self._expert = expert
-        self.keys = expert.keys
-        self.residual_actions = expert.spec.residual_actions
-        self.gamma = expert.spec.gamma
-        self.gae_lambda = expert.spec.gae_lambda
-
-    def act(self, observations, rng=None):
-        return self._expert.act(observations, rng)
 
 
 @dataclass
@@ -83,9 +81,7 @@ class PlaybackPolicy:
         count = len(next(iter(observations.values())))
         mean = np.zeros((count, 56))
         sample = mean if rng is None else mean + self.action_std * rng.standard_normal(mean.shape)
-        log_prob = -0.5 * np.sum((sample / self.action_std) ** 2, axis=1) - 56 * (
-            np.log(self.action_std) + 0.5 * np.log(2 * np.pi)
-        )
+        log_prob = gaussian_log_prob(sample, mean, self.action_std)
         return ExpertOutput(np.clip(sample, -1, 1), mean, log_prob, np.zeros(count))
 
 
@@ -196,7 +192,7 @@ def _new_buffer(first_observation: dict[str, np.ndarray], keys: list[str]) -> di
 
 
 def _flatten(observation: dict[str, np.ndarray], keys: list[str]) -> np.ndarray:
-    return np.concatenate([observation[k] for k in keys]).astype(np.float32)
+    return np.concatenate([observation[k] for k in keys], dtype=np.float32)
 
 
 def _episode(buffer: dict, terminated: bool, info: dict, policy: RolloutPolicy) -> Episode:
@@ -367,7 +363,7 @@ def rollout_clip(
     for number, (snippet, source) in enumerate(
         tqdm(sorted(experts.items()), desc=f"rollouts {clip_id}", unit="snippet", disable=not progress)
     ):
-        policy = source if hasattr(source, "act") else _ExpertAdapter(load_expert(str(source), config.trust_pickle))
+        policy = source if hasattr(source, "act") else load_expert(str(source), config.trust_pickle)
         seed = config.seed * 1_000_003 + number * 2
         common = {"clips": clips, "n_envs": config.n_envs, "walker": walker, "min_steps": config.min_steps}
         start = rollout_snippet(policy, snippet, config.n_start, "start", seed=seed, **common)  # type: ignore[arg-type]

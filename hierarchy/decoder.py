@@ -111,8 +111,8 @@ class DecoderSpec:
 
     @classmethod
     def from_json(cls, data: dict[str, Any], where: str) -> DecoderSpec:
-        """Builds the spec from :meth:`to_json` output (format checks are the reader's); errors name the file."""
-        fields = {k: v for k, v in data.items() if k not in ("format", "schema_version")}
+        """Builds the spec from a file's description (format and version already removed); errors name the file."""
+        fields = dict(data)
         fields["hidden_layers"] = tuple(fields.get("hidden_layers", ()))
         fields["observation_sizes"] = {str(k): int(v) for k, v in fields.get("observation_sizes", {}).items()}
         try:
@@ -121,21 +121,25 @@ class DecoderSpec:
             raise DecoderFileError(f"{where}: {error}") from None
 
 
-def mlp(input_size: int, hidden_layers: Sequence[int], output_size: int, activation: str, layer_norm: bool):
-    """``(Linear [-> LayerNorm] -> activation)`` per hidden layer, then a final ``Linear``.
-
-    For three hidden layers with layer norm the parameterised modules sit at
-    indices 0, 1, 3, 4, 6, 7 and 9 (MoCapAct's layout too).
-    """
+def hidden_stack(input_size: int, hidden_layers: Sequence[int], activation: str, layer_norm: bool = False):
+    """``(Linear [-> LayerNorm] -> activation)`` per hidden layer (stable-baselines3's ``mlp_extractor`` layout)."""
     layers: list[nn.Module] = []
-    sizes = [input_size, *hidden_layers]
-    for size_in, size_out in itertools.pairwise(sizes):
+    for size_in, size_out in itertools.pairwise([input_size, *hidden_layers]):
         layers.append(nn.Linear(size_in, size_out))
         if layer_norm:
             layers.append(nn.LayerNorm(size_out))
         layers.append(ACTIVATIONS[activation]())
-    layers.append(nn.Linear(sizes[-1], output_size))
     return nn.Sequential(*layers)
+
+
+def mlp(input_size: int, hidden_layers: Sequence[int], output_size: int, activation: str, layer_norm: bool):
+    """:func:`hidden_stack`, then a final ``Linear``.
+
+    For three hidden layers with layer norm the parameterised modules sit at
+    indices 0, 1, 3, 4, 6, 7 and 9 (MoCapAct's layout too).
+    """
+    last = hidden_layers[-1] if hidden_layers else input_size
+    return nn.Sequential(*hidden_stack(input_size, hidden_layers, activation, layer_norm), nn.Linear(last, output_size))
 
 
 def decoder_network(spec: DecoderSpec) -> nn.Sequential:
@@ -250,8 +254,10 @@ class LatentDecoder(nn.Module):
         if z.shape[-1:] != (self.spec.latent_size,):
             raise DecoderMismatchError(f"z has shape {z.shape}; the decoder's latent size is {self.spec.latent_size}")
         single = flat.ndim == 1
-        out = self(torch.from_numpy(flat.reshape(-1, flat.shape[-1])), torch.from_numpy(z.reshape(-1, z.shape[-1])))
-        actions = out.double().numpy()
+        device = self.observation_mean.device
+        observation = torch.from_numpy(flat.reshape(-1, flat.shape[-1])).to(device)
+        out = self(observation, torch.from_numpy(z.reshape(-1, z.shape[-1])).to(device))
+        actions = out.double().cpu().numpy()
         return actions[0] if single else actions
 
     def check_observations(self, sizes: Mapping[str, int]) -> None:
@@ -287,7 +293,7 @@ class LatentDecoder(nn.Module):
         tensors = {f"net.{k}": v for k, v in self.net.state_dict().items()}
         tensors["observation_mean"] = self.observation_mean
         tensors["observation_std"] = self.observation_std
-        return write_described(path, tensors, self.spec.to_json())
+        return write_described(path, tensors, DECODER_FORMAT, DECODER_SCHEMA_VERSION, asdict(self.spec))
 
 
 def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") -> LatentDecoder:

@@ -24,10 +24,15 @@ METADATA_KEY = "mocap_hierarchy"
 """Safetensors metadata key holding the JSON description."""
 
 
-def write_described(path: str | os.PathLike, tensors: dict[str, torch.Tensor], description: dict[str, Any]) -> Path:
-    """Writes ``tensors`` and ``description`` (with ``format`` and ``schema_version``) atomically."""
-    if "format" not in description or "schema_version" not in description:
-        raise ValueError("a description needs 'format' and 'schema_version'")
+def write_described(
+    path: str | os.PathLike,
+    tensors: dict[str, torch.Tensor],
+    file_format: str,
+    schema_version: int,
+    description: dict[str, Any],
+) -> Path:
+    """Writes ``tensors`` and ``description`` (stamped with ``format`` and ``schema_version``) atomically."""
+    description = {"format": file_format, "schema_version": schema_version, **description}
     tensors = {k: v.detach().contiguous().cpu() for k, v in tensors.items()}
     with atomic_path(path) as temporary:
         save_file(tensors, str(temporary), metadata={METADATA_KEY: json.dumps(description)})

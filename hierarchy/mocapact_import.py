@@ -57,20 +57,16 @@ class InertStub:
 
     Each global gets its own subclass (:func:`_stub_for`), whose ``stub_of``
     names the original. Calling it (pickle ``REDUCE``) or creating it (pickle
-    ``NEWOBJ``) yields an instance holding the arguments; pickle ``BUILD``
+    ``NEWOBJ``) yields an empty instance; pickle ``BUILD``
     hands it the object's state, which :func:`stub_state` reads back.
     """
 
     stub_of: str = ""
-    recorded_args: tuple[Any, ...]
-    recorded_kwargs: dict[str, Any]
     recorded_state: Any
 
     def __new__(cls, *args: Any, **kwargs: Any) -> InertStub:
-        """An instance recording its arguments (what pickle's ``NEWOBJ`` or ``REDUCE`` passes)."""
+        """An empty instance, whatever pickle's ``NEWOBJ`` or ``REDUCE`` passes (the arguments are dropped)."""
         instance = super().__new__(cls)
-        instance.recorded_args = args
-        instance.recorded_kwargs = kwargs
         instance.recorded_state = None
         return instance
 

@@ -10,7 +10,6 @@ deterministic=True)`` on the same (normalised) observations.
 
 from __future__ import annotations
 
-import itertools
 import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
@@ -21,7 +20,10 @@ import numpy as np
 import torch
 from torch import nn
 
+from hierarchy.decoder import hidden_stack
 from hierarchy.described_file import read_described, write_described
+from hierarchy.latent_env import observation_sizes
+from tasks.observables import flat_batch
 
 TASK_POLICY_FORMAT = "mocap_hierarchy.task_policy"
 TASK_POLICY_SCHEMA_VERSION = 1
@@ -73,12 +75,9 @@ class TaskPolicy(nn.Module):
     def __init__(self, spec: TaskPolicySpec, obs_mean: np.ndarray, obs_var: np.ndarray, action_size: int) -> None:
         super().__init__()
         self.spec = spec
-        sizes = [sum(spec.observation_sizes.values()), *spec.hidden_layers]
-        layers: list[nn.Module] = []
-        for size_in, size_out in itertools.pairwise(sizes):
-            layers += [nn.Linear(size_in, size_out), nn.Tanh()]
-        self.policy_net = nn.Sequential(*layers)
-        self.action_net = nn.Linear(sizes[-1], action_size)
+        size = sum(spec.observation_sizes.values())
+        self.policy_net = hidden_stack(size, spec.hidden_layers, "tanh")
+        self.action_net = nn.Linear(spec.hidden_layers[-1] if spec.hidden_layers else size, action_size)
         self.register_buffer("obs_mean", torch.as_tensor(obs_mean, dtype=torch.float64))
         self.register_buffer("obs_var", torch.as_tensor(obs_var, dtype=torch.float64))
         self.requires_grad_(False)
@@ -87,12 +86,10 @@ class TaskPolicy(nn.Module):
     @torch.no_grad()
     def act(self, observations: Mapping[str, np.ndarray]) -> np.ndarray:
         """Mean actions ``(N, action_size)`` for raw batched observations ``{key: (N, size)}``."""
-        parts = []
-        for key, size in self.spec.observation_sizes.items():
-            if key not in observations:
-                raise KeyError(f"the policy needs observation {key!r}")
-            parts.append(np.asarray(observations[key], dtype=np.float64).reshape(-1, size))
-        flat = torch.from_numpy(np.concatenate(parts, axis=1))
+        missing = [k for k in self.spec.observation_sizes if k not in observations]
+        if missing:
+            raise KeyError(f"the policy needs observations {missing}")
+        flat = torch.from_numpy(flat_batch(observations, self.spec.observation_sizes).astype(np.float64))
         normalised = (flat - self.obs_mean) / torch.sqrt(self.obs_var + self.spec.obs_epsilon)
         features = normalised.clamp(-self.spec.obs_clip, self.spec.obs_clip).float()
         actions = self.action_net(self.policy_net(features)).double().numpy()
@@ -100,9 +97,10 @@ class TaskPolicy(nn.Module):
 
     def save(self, path: str | os.PathLike) -> Path:
         """Writes the policy file atomically."""
-        description = {"format": TASK_POLICY_FORMAT, "schema_version": TASK_POLICY_SCHEMA_VERSION, **asdict(self.spec)}
-        description["action_size"] = self.action_net.out_features
-        return write_described(path, dict(self.state_dict()), description)
+        description = {**asdict(self.spec), "action_size": self.action_net.out_features}
+        return write_described(
+            path, dict(self.state_dict()), TASK_POLICY_FORMAT, TASK_POLICY_SCHEMA_VERSION, description
+        )
 
 
 def load_task_policy(path: str | os.PathLike) -> TaskPolicy:
@@ -127,6 +125,12 @@ def load_task_policy(path: str | os.PathLike) -> TaskPolicy:
     return policy
 
 
+def sb3_policy_layout(model) -> tuple[dict[str, int], tuple[int, ...]]:
+    """``(observation sizes in the space's key order, policy hidden layers)`` of a stable-baselines3 PPO."""
+    net_arch = model.policy.net_arch
+    return observation_sizes(model.observation_space), tuple(net_arch["pi"] if isinstance(net_arch, dict) else net_arch)
+
+
 def task_policy_from_sb3(model, vecnormalize, spec_fields: dict[str, Any]) -> TaskPolicy:
     """Converts a stable-baselines3 PPO (``MultiInputPolicy``) and its ``VecNormalize``.
 
@@ -135,8 +139,7 @@ def task_policy_from_sb3(model, vecnormalize, spec_fields: dict[str, Any]) -> Ta
         vecnormalize: Its observation normaliser (``norm_obs=True``), or None.
         spec_fields: ``task``, ``task_overrides``, ``decoder``, ``provenance``.
     """
-    space = model.observation_space
-    sizes = {k: int(np.prod(s.shape)) for k, s in space.spaces.items()}
+    sizes, layers = sb3_policy_layout(model)
     if vecnormalize is not None and vecnormalize.norm_obs:
         mean = np.concatenate([vecnormalize.obs_rms[k].mean.reshape(-1) for k in sizes])
         var = np.concatenate([vecnormalize.obs_rms[k].var.reshape(-1) for k in sizes])
@@ -144,8 +147,6 @@ def task_policy_from_sb3(model, vecnormalize, spec_fields: dict[str, Any]) -> Ta
     else:
         total = sum(sizes.values())
         mean, var, clip, epsilon = np.zeros(total), np.ones(total), float("inf"), 0.0
-    net_arch = model.policy.net_arch
-    layers = tuple(net_arch["pi"] if isinstance(net_arch, dict) else net_arch)
     spec = TaskPolicySpec(
         observation_sizes=sizes,
         hidden_layers=layers,

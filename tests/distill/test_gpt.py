@@ -194,7 +194,7 @@ def test_files_of_other_kinds_or_mismatched_weights_are_refused(trained, tmp_pat
     decoder_like = tmp_path / "decoder.safetensors"
     from hierarchy.described_file import write_described
 
-    write_described(decoder_like, {"x": torch.zeros(1)}, {"format": "mocap_hierarchy.decoder", "schema_version": 1})
+    write_described(decoder_like, {"x": torch.zeros(1)}, "mocap_hierarchy.decoder", 1, {})
     with pytest.raises(GptFileError, match="not a mocap-hierarchy motion GPT file"):
         load_gpt(decoder_like)
     # Weights of two layers under a description that claims three.
