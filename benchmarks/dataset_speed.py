@@ -25,6 +25,7 @@ Usage::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import time
 from pathlib import Path
 
@@ -102,11 +103,11 @@ def main() -> None:
     folder = build_dataset(Path(args.out), args.n_start, args.n_rsi)
     dataset = RolloutDataset(folder)
     config = SamplerConfig(window=WINDOW, weighting="rwr")
-    from_files = WindowDataset(dataset, GROUPS, SamplerConfig(**{**config.__dict__, "in_memory": False}))
+    from_files = WindowDataset(dataset, GROUPS, dataclasses.replace(config, in_memory=False))
     mapped = WindowDataset(
-        dataset, GROUPS, SamplerConfig(**{**config.__dict__, "in_memory": False, "cache_dir": str(folder / "cache")})
+        dataset, GROUPS, dataclasses.replace(config, in_memory=False, cache_dir=str(folder / "cache"))
     )
-    in_memory = WindowDataset(dataset, GROUPS, SamplerConfig(**{**config.__dict__, "in_memory": True}))
+    in_memory = WindowDataset(dataset, GROUPS, dataclasses.replace(config, in_memory=True))
     steps = sum(e.length for e in dataset.episodes)
     size = sum(p.stat().st_size for p in dataset.files) / 2**20
     print(

@@ -25,6 +25,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
 from distill.expert_config import ExpertConfig
+from distill.expert_files import ExpertDir
 from distill.expert_training import train_expert
 from tasks.atomic import atomic_path, write_json
 
@@ -95,7 +96,7 @@ def main() -> None:
         if args.learning_rates:
             config = dataclasses.replace(config, learning_rates=tuple(args.learning_rates))
         result = train_expert(args.snippet, out / mode, config)
-        evaluations = json.loads((Path(result.directory) / "eval_rsi" / "evaluations.json").read_text())
+        evaluations = json.loads(ExpertDir(Path(result.directory)).evaluations.read_text())
         curves[mode] = evaluations
 
     summary = {

@@ -118,16 +118,13 @@ def _train_many(args: argparse.Namespace) -> None:
 
 def _evaluate(args: argparse.Namespace) -> None:
     from distill.evaluation import evaluate_policy
-    from distill.expert_files import ExpertDir, find_experts
+    from distill.expert_files import find_experts
     from distill.expert_policy import load_expert
 
     config = dataclass_from_args(EvaluationConfig, args)
     if args.deterministic:
         config = dataclasses.replace(config, action_noise=0.0)
-    root = args.experts
-    experts = (
-        {str(ExpertDir(root).snippet()): ExpertDir(root)} if (root / "clip_info.json").is_file() else find_experts(root)
-    )
+    experts = find_experts(args.experts)  # also accepts a single expert directory
     results = []
     print(
         f"{'snippet':<28}{'norm. reward':>14}{'norm. length':>14}{'episodes':>10}   init={config.init} "

@@ -137,8 +137,8 @@ class RolloutDataset:
         indices = list(range(starts)) + list(range(layout.n_start, layout.n_start + randoms))
         refs = []
         for snippet in layout.snippets:
-            start_lengths = schema.dataset_at(f, f"{snippet}/{schema.START_METRICS}/episode_lengths", where)
-            random_lengths = schema.dataset_at(f, f"{snippet}/{schema.RSI_METRICS}/episode_lengths", where)
+            start_lengths = schema.dataset_at(f, f"{snippet}/{schema.START_METRICS}/{schema.EPISODE_LENGTHS}", where)
+            random_lengths = schema.dataset_at(f, f"{snippet}/{schema.RSI_METRICS}/{schema.EPISODE_LENGTHS}", where)
             lengths = np.concatenate([start_lengths[:starts], random_lengths[:randoms]])
             for index, length in zip(indices, lengths, strict=True):
                 refs.append(EpisodeRef(number, snippet, index, int(length), index < layout.n_start))
@@ -210,14 +210,8 @@ class RolloutDataset:
 
     def snippet_returns(self) -> dict[str, float]:
         """Mean normalised return per snippet (start and random-start episodes), for CWR."""
-        out = {}
-        for number, layout in enumerate(self.layouts):
-            f, where = self.file(number), str(self.files[number])
-            for snippet in layout.snippets:
-                start = schema.dataset_at(f, f"{snippet}/{schema.START_METRICS}/norm_episode_returns", where)[...]
-                randoms = schema.dataset_at(f, f"{snippet}/{schema.RSI_METRICS}/norm_episode_returns", where)[...]
-                out[snippet] = float(np.mean([np.mean(start), np.mean(randoms)]))
-        return out
+        start, randoms = self.expert_metrics("start"), self.expert_metrics("random")
+        return {s: float(np.mean([start[s]["normalized_reward"], randoms[s]["normalized_reward"]])) for s in start}
 
     def expert_metrics(self, init: str = "random") -> dict[str, dict[str, float]]:
         """The experts' mean normalised reward and length per snippet, as recorded in the files.
@@ -234,8 +228,8 @@ class RolloutDataset:
             for snippet in layout.snippets:
                 read = lambda name: float(np.mean(schema.dataset_at(f, f"{snippet}/{group}/{name}", where)[...]))  # noqa: B023, E731
                 out[snippet] = {
-                    "normalized_reward": read("norm_episode_returns"),
-                    "normalized_length": read("norm_episode_lengths"),
+                    "normalized_reward": read(schema.NORM_EPISODE_RETURNS),
+                    "normalized_length": read(schema.NORM_EPISODE_LENGTHS),
                 }
         return out
 
@@ -248,7 +242,8 @@ class RolloutDataset:
             where = str(self.files[number])
             stats = schema.group_at(self.file(number), schema.STATS, where)
             rows = float(schema.dataset_at(stats, "count", where)[()])
-            actions = float(schema.dataset_at(stats, "action_count", where)[()]) if "action_count" in stats else rows
+            has_actions = schema.ACTION_COUNT in stats
+            actions = float(schema.dataset_at(stats, schema.ACTION_COUNT, where)[()]) if has_actions else rows
             for name, count in (("proprio", rows), ("act", actions), ("mean_act", actions)):
                 mean = np.asarray(schema.dataset_at(stats, f"{name}_mean", where)[...], dtype=np.float64)
                 var = np.asarray(schema.dataset_at(stats, f"{name}_var", where)[...], dtype=np.float64)

@@ -11,6 +11,7 @@ both import this module, so the layout exists in one place::
     stats/act_mean, act_var             (56,)  over sampled actions
     stats/mean_act_mean, mean_act_var   (56,)  over mean actions
     stats/count                         ()     number of observation rows
+    stats/action_count                  ()     number of actions (ours; MoCapAct's files lack it)
     <snippet id>/                       e.g. SYN_walk_slow-0-182
         early_termination               (S+R,) bool: the episode failed (error > 0.3)
         start_metrics/, rsi_metrics/    episode_returns, episode_lengths,
@@ -43,10 +44,16 @@ REF_STEPS = "ref_steps"
 OBSERVABLE_INDICES = "observable_indices"
 STATS = "stats"
 STAT_NAMES = ("proprio_mean", "proprio_var", "act_mean", "act_var", "mean_act_mean", "mean_act_var", "count")
+ACTION_COUNT = "action_count"
+"""Stats entry of our files only: actions counted (``count`` counts observation rows)."""
 EARLY_TERMINATION = "early_termination"
 START_METRICS = "start_metrics"
 RSI_METRICS = "rsi_metrics"
-METRIC_NAMES = ("episode_returns", "episode_lengths", "norm_episode_returns", "norm_episode_lengths")
+EPISODE_RETURNS = "episode_returns"
+EPISODE_LENGTHS = "episode_lengths"
+NORM_EPISODE_RETURNS = "norm_episode_returns"
+NORM_EPISODE_LENGTHS = "norm_episode_lengths"
+METRIC_NAMES = (EPISODE_RETURNS, EPISODE_LENGTHS, NORM_EPISODE_RETURNS, NORM_EPISODE_LENGTHS)
 OBSERVATIONS = "observations/proprioceptive"
 ACTIONS = "actions"
 MEAN_ACTIONS = "mean_actions"

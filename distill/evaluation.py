@@ -26,6 +26,7 @@ class EvaluationConfig:
         init: ``random`` (reference-state initialisation) or ``start`` of the snippet.
         min_steps: Random starts exclude the last ``min_steps + 1`` frames (30).
         action_noise: Gaussian noise added to the mean action (0 gives a deterministic policy).
+        termination_threshold: Tracking error that ends an episode (the expert's training value).
         n_envs: Environments stepped in lockstep.
         seed: Seed of starts and noise.
     """
@@ -34,6 +35,7 @@ class EvaluationConfig:
     init: str = "random"
     min_steps: int = 29
     action_noise: float = 0.1
+    termination_threshold: float = 0.3
     n_envs: int = 16
     seed: int = 0
 
@@ -94,6 +96,7 @@ def evaluate_policy(
         init=config.init,
         min_steps=config.min_steps,
         action_noise=config.action_noise,
+        termination_threshold=config.termination_threshold,
         residual_actions=policy.spec.residual_actions,
     )
     n_envs = min(config.n_envs, config.episodes)

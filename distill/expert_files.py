@@ -95,6 +95,21 @@ class ExpertDir:
         return self.root / "checkpoint"
 
     @property
+    def checkpoint_model(self) -> Path:
+        """The checkpoint's stable-baselines3 PPO."""
+        return self.checkpoint_dir / "model.zip"
+
+    @property
+    def checkpoint_normaliser(self) -> Path:
+        """The checkpoint's ``VecNormalize``."""
+        return self.checkpoint_dir / "vecnormalize.pkl"
+
+    @property
+    def checkpoint_state(self) -> Path:
+        """The checkpoint's training-callback state (written last: its presence marks a complete checkpoint)."""
+        return self.checkpoint_dir / "state.json"
+
+    @property
     def done(self) -> Path:
         """Marker written when training has finished."""
         return self.root / "done.json"
@@ -129,12 +144,12 @@ class ExpertDir:
 def write_clip_info(root: Path, snippet: SnippetId, clip_length: int) -> None:
     """Writes ``clip_info.json`` (whole clips get ``end_step`` = clip length)."""
     end = clip_length if snippet.end is None else snippet.end
-    write_json(root / "clip_info.json", {"clip_id": snippet.clip_id, "start_step": snippet.start, "end_step": end})
+    write_json(ExpertDir(root).clip_info, {"clip_id": snippet.clip_id, "start_step": snippet.start, "end_step": end})
 
 
 def read_clip_info(root: Path) -> dict:
     """Reads and checks ``clip_info.json``."""
-    path = Path(root) / "clip_info.json"
+    path = ExpertDir(Path(root)).clip_info
     try:
         info = json.loads(path.read_text())
     except FileNotFoundError:
@@ -148,7 +163,7 @@ def read_clip_info(root: Path) -> dict:
 
 
 def find_experts(root: str | os.PathLike) -> dict[str, ExpertDir]:
-    """Every expert directory below ``root`` (any depth), keyed by snippet id.
+    """Every expert directory at or below ``root`` (any depth; ``root`` may be one), keyed by snippet id.
 
     Raises:
         ExpertFilesError: ``root`` does not exist or holds no expert.

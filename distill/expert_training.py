@@ -206,6 +206,7 @@ class _Trainer:
                 init="random",
                 min_steps=config.eval_min_steps,
                 action_noise=config.eval_action_noise,
+                termination_threshold=config.termination_threshold,
                 seed=config.seed,
             ),
             clips=self.clips,
@@ -233,12 +234,12 @@ class _Trainer:
 
     def checkpoint(self, model: PPO, state: dict) -> None:
         """Writes a resumable checkpoint (model, normaliser, callback state)."""
-        folder = self.expert.checkpoint_dir
+        expert = self.expert
         venv = model.get_vec_normalize_env()
         assert venv is not None
-        save_sb3(model, venv, folder / "model.zip", folder / "vecnormalize.pkl", _SB3_SAVE_EXCLUDE)
+        save_sb3(model, venv, expert.checkpoint_model, expert.checkpoint_normaliser, _SB3_SAVE_EXCLUDE)
         saved = {k: v for k, v in state.items() if k != "recent"}
-        write_json(folder / "state.json", {**saved, "steps": int(model.num_timesteps)})
+        write_json(expert.checkpoint_state, {**saved, "steps": int(model.num_timesteps)})
 
 
 def train_expert(
@@ -292,9 +293,9 @@ def train_expert(
     vec_env = SubprocVecEnv(factories) if config.subprocess_envs and n_envs > 1 else DummyVecEnv(factories)
     schedule = PiecewiseLearningRate(config.learning_rates)
     if resume_state is not None:
-        venv = VecNormalize.load(str(expert.checkpoint_dir / "vecnormalize.pkl"), vec_env)
+        venv = VecNormalize.load(str(expert.checkpoint_normaliser), vec_env)
         venv.training = True
-        model = PPO.load(expert.checkpoint_dir / "model.zip", env=venv, device=config.device, learning_rate=schedule)
+        model = PPO.load(expert.checkpoint_model, env=venv, device=config.device, learning_rate=schedule)
         state = resume_state
     else:
         venv = VecNormalize(vec_env, norm_obs=True, norm_reward=True, gamma=config.gamma)
@@ -355,7 +356,7 @@ def train_expert(
 
 def _check_resume(expert: ExpertDir, config: ExpertConfig) -> dict | None:
     """The saved callback state if a compatible checkpoint exists."""
-    state_file = expert.checkpoint_dir / "state.json"
+    state_file = expert.checkpoint_state
     if not state_file.is_file():
         return None
     if expert.config.is_file():

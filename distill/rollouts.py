@@ -282,10 +282,10 @@ def write_rollout_file(
             group[schema.EARLY_TERMINATION] = np.array([e.terminated for e in episodes], dtype=bool)
             for name, part in ((schema.START_METRICS, start_episodes), (schema.RSI_METRICS, random_episodes)):
                 metrics = group.create_group(name)
-                metrics["episode_returns"] = np.array([e.rewards.sum() for e in part], dtype=np.float64)
-                metrics["episode_lengths"] = np.array([len(e.actions) for e in part], dtype=np.int64)
-                metrics["norm_episode_returns"] = np.array([e.normalized_return for e in part], dtype=np.float64)
-                metrics["norm_episode_lengths"] = np.array([e.normalized_length for e in part], dtype=np.float64)
+                metrics[schema.EPISODE_RETURNS] = np.array([e.rewards.sum() for e in part], dtype=np.float64)
+                metrics[schema.EPISODE_LENGTHS] = np.array([len(e.actions) for e in part], dtype=np.int64)
+                metrics[schema.NORM_EPISODE_RETURNS] = np.array([e.normalized_return for e in part], dtype=np.float64)
+                metrics[schema.NORM_EPISODE_LENGTHS] = np.array([e.normalized_length for e in part], dtype=np.float64)
         stats = f.create_group(schema.STATS)
         for name, total, squares, count in (
             ("proprio", sums["obs"], sums["obs2"], rows),
@@ -296,7 +296,7 @@ def write_rollout_file(
             stats[f"{name}_mean"] = mean.astype(np.float32)
             stats[f"{name}_var"] = np.clip(squares / max(count, 1) - mean**2, 0.0, None).astype(np.float32)
         stats["count"] = np.int64(rows)
-        stats["action_count"] = np.int64(actions)
+        stats[schema.ACTION_COUNT] = np.int64(actions)
     return path
 
 

@@ -12,7 +12,7 @@ sampled) actions, and a weight per step:
 
 Weights are rescaled so their mean under the sampling distribution is exactly
 1 (the KL term keeps its relative weight). Windows of shorter snippets are
-drawn more often, in proportion to ``210 / snippet length``, so every clip's
+drawn more often, in proportion to ``1 / snippet length``, so every clip's
 data is used evenly.
 
 Three access paths, same values: everything needed is gathered into memory
@@ -58,8 +58,7 @@ class SamplerConfig:
         weighting: ``bc``, ``cwr``, ``awr`` or ``rwr``.
         temperature: Weighting temperature; None takes the seed's for the scheme.
         actions: ``mean`` (the experts' mean actions, the seed's targets) or ``sampled``.
-        upsample_short_snippets: Draw windows in proportion to ``max_snippet_length / length``.
-        max_snippet_length: The longest snippet (210).
+        upsample_short_snippets: Draw windows in proportion to ``1 / snippet length``.
         max_weight: Weights are clipped to this after rescaling.
         normalize_observations: Standardise observations with the dataset statistics.
         in_memory: Gather the selected data into memory (None: when it needs less than ``memory_limit_gb``).
@@ -74,7 +73,6 @@ class SamplerConfig:
     temperature: float | None = None
     actions: str = "mean"
     upsample_short_snippets: bool = True
-    max_snippet_length: int = 210
     max_weight: float = math.inf
     normalize_observations: bool = False
     in_memory: bool | None = None
@@ -140,7 +138,7 @@ class WindowDataset(Dataset):
         factor = np.ones(len(self.episodes))
         if self.config.upsample_short_snippets:
             lengths = np.array([_snippet_steps(e.snippet) for e in self.episodes], dtype=np.float64)
-            factor = self.config.max_snippet_length / lengths
+            factor = 1.0 / lengths
         per_window = np.repeat(factor, counts)
         return per_window / per_window.sum()
 
@@ -274,8 +272,8 @@ class WindowDataset(Dataset):
             observations, actions = self._episode_datasets(episode)
             rows = observations[start : start + window]
             for name, cols in self.columns.items():
-                out[name] = rows[:, cols].astype(np.float32)
-            out["actions"] = actions[start : start + window].astype(np.float32)
+                out[name] = rows[:, cols].astype(np.float32, copy=False)
+            out["actions"] = actions[start : start + window].astype(np.float32, copy=False)
         out["weights"] = self.weights[act : act + window]
         return self._normalised(out)
 

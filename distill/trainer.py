@@ -144,7 +144,8 @@ def train(
 
     Args:
         model: An ``nn.Module``; ``model(batch)`` returns ``(scalar loss, {name: 0-d tensor})``
-            (detached tensors: they are read back only when logged, so no step waits for the device).
+            (detached tensors, read back only when logged; the one per-step wait is the finiteness check of the loss,
+            kept so a NaN never reaches the optimiser).
         batches: ``batches(seed, batch_size, device)`` yields batches forever.
         out: Output folder (checkpoint, history, TensorBoard logs).
         config: Loop settings.

@@ -25,5 +25,5 @@ def test_new_task_example_trains_on_a_decoder_file(clip_library, tmp_path, capsy
     path = decoder.save(tmp_path / "decoder.safetensors")
     example = runpy.run_path(str(source), run_name="example")
     score = example["main"](["--decoder", str(path), "--steps", "64", "--n-envs", "2", "--hidden", "16"])
-    assert -1.0 <= score <= 1.0
-    assert "mean facing reward after 64 steps" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert np.isfinite(score) and f"mean facing reward after 64 steps: {score:.3f}" in out

@@ -1,3 +1,4 @@
+import dataclasses
 import json
 import pickle
 
@@ -54,6 +55,13 @@ def test_sampled_log_probs_are_gaussian(trained_expert, snippet):
     assert np.std(output.actions[:, inside], axis=0).mean() == pytest.approx(0.1, rel=0.05)
     expected = -56 * (np.log(0.1) + 0.5 * np.log(2 * np.pi))  # log-density at the mean
     assert policy.act({k: v[:1] for k, v in batch.items()}).log_probs[0] == pytest.approx(expected)
+    # Rows no clipping touched: the reported log-density is that of the returned sample.
+    assert np.all(np.abs(mean) < 1.0)  # the clipped mean is the Gaussian's mean
+    unclipped = np.all(np.abs(output.actions) < 1.0, axis=1)
+    assert unclipped.sum() > 100
+    samples = output.actions[unclipped]
+    density = -0.5 * np.sum(((samples - mean) / 0.1) ** 2, axis=1) + expected
+    np.testing.assert_allclose(output.log_probs[unclipped], density, rtol=1e-9)
 
 
 def test_rerun_skips_a_finished_expert(trained_expert, snippet, tiny):
@@ -62,7 +70,7 @@ def test_rerun_skips_a_finished_expert(trained_expert, snippet, tiny):
 
 
 def test_interrupted_training_resumes_from_its_checkpoint(clip_library, tmp_path, monkeypatch, snippet, tiny):
-    config = ExpertConfig(**{**tiny.__dict__, "total_steps": 1536})
+    config = dataclasses.replace(tiny, total_steps=1536)
     original = _Trainer.evaluate
     calls = {"n": 0}
 
@@ -80,7 +88,7 @@ def test_interrupted_training_resumes_from_its_checkpoint(clip_library, tmp_path
     assert state["steps"] == 512 and not expert.done.exists()
 
     with pytest.raises(ConfigMismatchError, match="learning_rates"):
-        train_expert(snippet, tmp_path, ExpertConfig(**{**config.__dict__, "learning_rates": (1e-3,)}), progress=False)
+        train_expert(snippet, tmp_path, dataclasses.replace(config, learning_rates=(1e-3,)), progress=False)
 
     monkeypatch.setattr(_Trainer, "evaluate", original)
     result = train_expert(snippet, tmp_path, config, progress=False)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
@@ -58,9 +59,7 @@ def test_results_are_reproducible_and_cache_and_window_modes_both_run(clip_libra
     first = complete_motions(random_gpt(), {SNIPPET: factory}, config)
     again = complete_motions(random_gpt(), {SNIPPET: factory}, config)
     assert first == again and set(first[SNIPPET]) == {"deterministic", "stochastic"}
-    window = complete_motions(
-        random_gpt(), {SNIPPET: factory}, CompletionConfig(**{**config.__dict__, "context": "window"})
-    )
+    window = complete_motions(random_gpt(), {SNIPPET: factory}, dataclasses.replace(config, context="window"))
     assert window[SNIPPET]["deterministic"]["episodes"] == 2
     table = completion_table(first)
     assert SNIPPET in table and "deterministic mean (median)" in table

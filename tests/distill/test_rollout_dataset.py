@@ -32,7 +32,7 @@ def test_file_follows_the_seed_layout(rollout_dir):
             episode = group[str(index)]
             steps = episode["actions"].shape[0]
             assert episode["observations/proprioceptive"].shape == (steps + 1, 2868)
-            for name in ("mean_actions",):
+            for name in ("actions", "mean_actions"):
                 assert episode[name].shape == (steps, 56)
             for name in ("log_probs", "rewards", "values", "advantages"):
                 assert episode[name].shape == (steps,)
@@ -113,13 +113,17 @@ def test_rerun_skips_complete_files(rollout_dir):
 def test_interrupted_write_leaves_nothing_a_reader_accepts(clip_library, tmp_path, monkeypatch):
     import distill.rollouts as rollouts
 
+    entered = []
+
     def killed(*args, **kwargs):
+        entered.append(True)
         raise KeyboardInterrupt("killed while writing")
 
-    monkeypatch.setattr(rollouts, "gae", killed)
+    # Called inside the open temporary file, after its first datasets were written.
+    monkeypatch.setattr(rollouts.schema, "observable_index_path", killed)
     with pytest.raises(KeyboardInterrupt):
         rollout_clip("SYN_stand", {"SYN_stand-0-181": PlaybackPolicy()}, tmp_path, RolloutConfig(n_start=1, n_rsi=1))
-    assert list(tmp_path.iterdir()) == []
+    assert entered and list(tmp_path.iterdir()) == []
 
 
 def test_truncated_file_is_reported(rollout_dir, tmp_path):

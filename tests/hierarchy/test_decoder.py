@@ -148,5 +148,14 @@ def test_steps_per_latent_repeats_the_latent():
     decoder = small_decoder()
     env = LatentActionEnv(tasks.make("velocity_control", max_steps=50), decoder, steps_per_latent=3)
     env.reset(seed=0)
-    env.step(np.zeros(6, dtype=np.float32))
+    z = np.full(6, 0.5, dtype=np.float32)
+    observation, reward, *_ = env.step(z)
     assert env.unwrapped.steps == 3  # type: ignore[attr-defined]
+    # The same z decoded on each of the three observations, and the three rewards summed.
+    plain = tasks.make("velocity_control", max_steps=50)
+    expected, total = plain.reset(seed=0)[0], 0.0
+    for _ in range(3):
+        expected, step_reward, *_ = plain.step(np.clip(decoder.decode(expected, z), -1.0, 1.0))
+        total += step_reward
+    assert reward == pytest.approx(total)
+    np.testing.assert_array_equal(observation["walker/joints_pos"], expected["walker/joints_pos"])

@@ -79,7 +79,7 @@ def test_policy_file_acts_like_stable_baselines(tmp_path):
 
 
 @pytest.mark.parametrize("with_decoder", [True, False])
-def test_train_resume_and_evaluate(tmp_path, with_decoder):
+def test_train_resume_and_evaluate(tmp_path, with_decoder, capsys):
     decoder_file = small_decoder().save(tmp_path / "decoder.safetensors") if with_decoder else None
     out = tmp_path / "run"
     policy_file = train_transfer("velocity_control", out, decoder_file, TINY, {"max_steps": 30}, progress=False)
@@ -89,7 +89,9 @@ def test_train_resume_and_evaluate(tmp_path, with_decoder):
     assert (out / "progress.csv").is_file() and (out / "checkpoint" / "model.zip").is_file()
     # A longer run continues from the saved step instead of starting over.
     longer = dataclasses.replace(TINY, total_steps=192)
+    capsys.readouterr()
     train_transfer("velocity_control", out, decoder_file, longer, {"max_steps": 30}, progress=False)
+    assert f"resuming {out} from step 128" in capsys.readouterr().out
     assert load_task_policy(policy_file).spec.provenance["steps"] == 192
     summary = evaluate_transfer(policy_file, episodes=2, max_steps=10)
     assert summary.episodes == 2 and len(summary.returns) == 2
