@@ -104,7 +104,8 @@ def train_gpt(
             return windows.batches(batch_size, seed=seed, device=device)
 
         outcome = train(model, batches, out, trainer, settings, progress=progress, description="training GPT")
-        if not place.is_main:  # under torchrun, rank 0 alone writes the files
+        # Under torchrun rank 0 alone writes; a finished run keeps its file.
+        if not place.is_main or (outcome.already_finished and (out / GPT_FILE).is_file()):
             return GptResult(out / GPT_FILE, count, outcome)
         model.cpu().eval()
         facts = {"dataset": files, "steps": outcome.steps, "final_loss": outcome.final_loss}

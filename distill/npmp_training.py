@@ -89,7 +89,9 @@ def train_npmp(
             return windows.batches(batch_size, seed=seed, device=device)
 
         outcome = train(policy, batches, out, trainer, settings, progress=progress, description="distilling")
-        if not distributed_from_environment().is_main:  # under torchrun, rank 0 alone writes the files
+        written = (out / DECODER_FILE).is_file() and (out / POLICY_FILE).is_file()
+        # Under torchrun rank 0 alone writes; a finished run keeps its files (and the decoder its SHA-256).
+        if not distributed_from_environment().is_main or (outcome.already_finished and written):
             return DistillResult(out / DECODER_FILE, out / POLICY_FILE, outcome)
         facts = {
             "dataset": files,

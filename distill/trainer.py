@@ -130,6 +130,11 @@ class TrainingOutcome:
     history: dict[str, list[float]]
     seconds: float
 
+    @property
+    def already_finished(self) -> bool:
+        """The checkpoint had reached the requested steps: this call trained nothing."""
+        return self.resumed_from == self.steps
+
 
 def train(
     model: nn.Module,

@@ -15,6 +15,7 @@ logs), ``transfer.json`` (settings and outcome) and, while training,
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from dataclasses import asdict, dataclass
@@ -30,7 +31,7 @@ from hierarchy.decoder import LatentDecoder, load_decoder, provenance
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
 from tasks.atomic import save_sb3, write_json
-from tasks.fingerprints import file_sha256
+from tasks.fingerprints import file_sha256, settings_fingerprint
 
 POLICY_FILE = "policy.safetensors"
 CHECKPOINT_DIR = "checkpoint"
@@ -184,8 +185,18 @@ def train_transfer(
     frozen = load_decoder(decoder) if decoder is not None else None
     if config.steps_per_update % config.n_envs:
         raise ValueError(f"steps_per_update {config.steps_per_update} must be a multiple of n_envs {config.n_envs}")
-    venv = _vec_env(task, overrides, frozen, config)
+    decoder_sha = file_sha256(decoder) if decoder is not None else None
     checkpoint = out / CHECKPOINT_DIR
+    key = settings_fingerprint(
+        {
+            "task": task,
+            "overrides": overrides,
+            "decoder": decoder_sha,
+            "config": {k: v for k, v in asdict(config).items() if k not in _RESUME_FREE},
+        }
+    )
+    _check_resume_settings(checkpoint, key)
+    venv = _vec_env(task, overrides, frozen, config)
     model_file, normaliser_file = checkpoint / "model.zip", checkpoint / "vecnormalize.pkl"
     if model_file.is_file() and normaliser_file.is_file():
         # Our own run's files (written below): SB3 needs its pickles to resume the optimiser.
@@ -225,7 +236,7 @@ def train_transfer(
     if decoder is not None:
         decoder_facts = {
             "path": str(Path(decoder).resolve()),
-            "sha256": file_sha256(decoder),
+            "sha256": decoder_sha,
             "max_latent": config.max_latent,
             "steps_per_latent": config.steps_per_latent,
         }
@@ -244,6 +255,23 @@ def train_transfer(
     write_json(out / "transfer.json", {"task": task, "decoder": decoder_facts, "config": asdict(config)})
     venv.close()
     return path
+
+
+_RESUME_FREE = ("total_steps", "checkpoint_every", "device", "subprocess_envs")
+"""Settings a resumed run may change (a longer budget, other checkpointing or hardware)."""
+
+
+def _check_resume_settings(checkpoint: Path, key: str) -> None:
+    """Refuses to resume a checkpoint of another task, decoder or PPO setting; records the settings of a new one."""
+    record = checkpoint / "settings.json"
+    if record.is_file():
+        if json.loads(record.read_text()).get("fingerprint") != key:
+            raise ValueError(
+                f"{checkpoint} was trained with another task, decoder or PPO settings; use another --out folder, "
+                "or delete it to start over"
+            )
+    elif not (checkpoint / "model.zip").is_file():
+        write_json(record, {"fingerprint": key})
 
 
 def _save_resume_files(model, folder: Path) -> None:

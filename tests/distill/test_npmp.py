@@ -104,3 +104,12 @@ def test_torchrun_ddp_on_two_cpu_processes(rollout_dir, tmp_path):
     finished = subprocess.run(command, capture_output=True, text=True, timeout=300, env=environment)
     assert finished.returncode == 0, finished.stderr[-3000:]
     assert load_decoder(out / "decoder.safetensors").spec.provenance["steps"] == 6
+
+
+def test_rerunning_a_finished_distillation_keeps_the_decoder_file(distilled, rollout_dir):
+    from tasks.fingerprints import file_sha256
+
+    result, out = distilled
+    before = file_sha256(result.decoder)
+    again = train_npmp(rollout_dir, out, SMALL, FAST, SAMPLER, progress=False)
+    assert again.outcome.already_finished and file_sha256(again.decoder) == before

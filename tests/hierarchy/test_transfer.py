@@ -109,3 +109,15 @@ def test_evaluation_refuses_a_different_decoder(tmp_path):
     other = small_decoder(seed=1).save(tmp_path / "other.safetensors")
     with pytest.raises(ValueError, match="SHA-256"):
         evaluate_transfer(policy_file, episodes=1, decoder_path=other)
+
+
+def test_resume_refuses_another_decoder_or_setting(tmp_path):
+    decoder_file = small_decoder().save(tmp_path / "decoder.safetensors")
+    out = tmp_path / "run"
+    train_transfer("velocity_control", out, decoder_file, TINY, {"max_steps": 30}, progress=False)
+    other = small_decoder(seed=1).save(tmp_path / "other.safetensors")
+    with pytest.raises(ValueError, match="another task, decoder or PPO settings"):
+        train_transfer("velocity_control", out, other, TINY, {"max_steps": 30}, progress=False)
+    with pytest.raises(ValueError, match="another task, decoder or PPO settings"):
+        train_transfer("velocity_control", out, decoder_file, dataclasses.replace(TINY, learning_rate=1e-3),
+                       {"max_steps": 30}, progress=False)  # fmt: skip
