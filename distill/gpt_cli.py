@@ -84,10 +84,10 @@ def _complete(args: argparse.Namespace) -> None:
 
 def _prompts(args: argparse.Namespace) -> dict:
     """Snippet -> prompt factory, from ``--experts`` or ``--policy``."""
-    from distill.motion_completion import ExpertPrompt, MultiClipPrompt
+    from distill.motion_completion import ExpertPrompt
+    from distill.npmp import MultiClipPrompt, load_policy
 
     if args.policy is not None:
-        from distill.npmp import load_policy
         from distill.npmp_training import POLICY_FILE
 
         path = file_in_folder(args.policy, POLICY_FILE)

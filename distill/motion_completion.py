@@ -107,31 +107,6 @@ class ExpertPrompt:
         del row
 
 
-class MultiClipPrompt:
-    """The multi-clip policy tracking the snippet (deterministic latents, zero at each episode start).
-
-    Args:
-        policy: A :class:`distill.npmp.NpmpPolicy`.
-        rows: Environments it serves.
-    """
-
-    def __init__(self, policy, rows: int) -> None:
-        self.policy = policy
-        self.keys = policy.spec.observation_keys
-        self.ref_steps = tuple(policy.spec.ref_steps)
-        self._z = np.zeros((rows, policy.config.latent_size), dtype=np.float32)
-
-    def act(self, observations, envs, rows):
-        """Tracks the reference with the encoder's mean latent (the policy's own deterministic step)."""
-        del envs
-        actions, self._z[rows] = self.policy.act_batch(observations, self._z[rows])
-        return actions
-
-    def reset(self, row: int) -> None:
-        """The next episode of ``row`` starts from ``z = 0``."""
-        self._z[row] = 0.0
-
-
 class CompletionController:
     """Who acts when: the prompt policy during the prompt, the GPT after it.
 

@@ -260,6 +260,34 @@ class NpmpPolicy(nn.Module):
         return write_described(path, dict(self.state_dict()), POLICY_FORMAT, POLICY_SCHEMA_VERSION, asdict(self.spec))
 
 
+class MultiClipPrompt:
+    """The multi-clip policy driving several tracking environments (deterministic latents, zero at each start).
+
+    Used by the multi-clip evaluation and as a prompt policy of motion completion
+    (:class:`distill.motion_completion.PromptPolicy`).
+
+    Args:
+        policy: The policy.
+        rows: Environments it serves.
+    """
+
+    def __init__(self, policy: NpmpPolicy, rows: int) -> None:
+        self.policy = policy
+        self.keys = policy.spec.observation_keys
+        self.ref_steps = tuple(policy.spec.ref_steps)
+        self._z = np.zeros((rows, policy.config.latent_size), dtype=np.float32)
+
+    def act(self, observations, envs, rows):
+        """Tracks the reference with the encoder's mean latent (the policy's own deterministic step)."""
+        del envs
+        actions, self._z[rows] = self.policy.act_batch(observations, self._z[rows])
+        return actions
+
+    def reset(self, row: int) -> None:
+        """The next episode of ``row`` starts from ``z = 0``."""
+        self._z[row] = 0.0
+
+
 def load_policy(path: str | os.PathLike) -> NpmpPolicy:
     """Reads a file written by :meth:`NpmpPolicy.save` (no pickle).
 

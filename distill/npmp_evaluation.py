@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm.auto import tqdm
 
-from distill.npmp import NpmpPolicy
+from distill.npmp import MultiClipPrompt, NpmpPolicy
 from tasks.lockstep import Lockstep
 from tasks.tracking import ClipTrackingEnv, TrackingConfig
 from tasks.walker import build_walker
@@ -54,7 +54,6 @@ def evaluate_multi_clip(
     """
     walker = build_walker()
     keys = policy.spec.observation_keys
-    latent = policy.config.latent_size
     results = {}
     for snippet in tqdm(snippets, desc="evaluating multi-clip policy", unit="snippet", disable=not progress):
         tracking = TrackingConfig(
@@ -68,16 +67,15 @@ def evaluate_multi_clip(
         n_envs = min(config.n_envs, config.episodes)
         envs = [ClipTrackingEnv(tracking, walker=walker) for _ in range(n_envs)]
         lockstep = Lockstep(envs, config.episodes, [config.seed * 100_003 + i for i in range(n_envs)])
-        z = np.zeros((n_envs, latent), dtype=np.float32)
+        driver = MultiClipPrompt(policy, n_envs)
         rewards, lengths = [], []
         while lockstep.active:
-            active = list(lockstep.active)
-            actions, z[active] = policy.act_batch(lockstep.batch(keys), z[active])
+            actions = driver.act(lockstep.batch(keys), envs, list(lockstep.active))
             for transition in lockstep.step(actions):
                 if transition.done:
                     rewards.append(transition.info["normalized_episode_reward"])
                     lengths.append(transition.info["normalized_episode_length"])
-                    z[transition.env] = 0.0
+                    driver.reset(transition.env)
         results[snippet] = {
             "normalized_reward": float(np.mean(rewards)),
             "normalized_length": float(np.mean(lengths)),

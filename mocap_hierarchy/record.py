@@ -115,8 +115,7 @@ def _expert(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
 
 
 def _multi_clip(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
-    from distill.motion_completion import MultiClipPrompt
-    from distill.npmp import load_policy
+    from distill.npmp import MultiClipPrompt, load_policy
 
     _require_task(task, ("tracking",), "the multi-clip policy")
     prompt = MultiClipPrompt(load_policy(path), rows=1)
