@@ -21,6 +21,8 @@ import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import torch
+
 from distill.dataset import RolloutDataset
 from distill.gpt import GptConfig, GptSpec, MotionGpt
 from distill.sampler import SamplerConfig, WindowDataset
@@ -89,6 +91,7 @@ def train_gpt(
         windows = WindowDataset(dataset, {"states": gpt.observables}, sampler)
         means, stds = windows.statistics()
         spec = GptSpec(config=asdict(gpt), observation_sizes=sizes, action_size=windows.action_size)
+        torch.manual_seed(trainer.seed)  # the initial weights follow the trainer's seed
         model = MotionGpt(spec, means["states"], stds["states"])
         count = model.parameter_count()
         place = distributed_from_environment()

@@ -15,6 +15,8 @@ import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import torch
+
 from distill.dataset import RolloutDataset
 from distill.npmp import NpmpConfig, NpmpPolicy, NpmpSpec
 from distill.sampler import SamplerConfig, WindowDataset
@@ -81,6 +83,7 @@ def train_npmp(
             ref_steps=ref_steps,
             action_size=windows.action_size,
         )
+        torch.manual_seed(trainer.seed)  # the initial weights follow the trainer's seed
         policy = NpmpPolicy(spec, means["encoder"], stds["encoder"], means["decoder"], stds["decoder"])
         files = [str(p.resolve()) for p in dataset.files]
         settings = {"npmp": asdict(npmp), "sampler": asdict(sampler), "data": files}

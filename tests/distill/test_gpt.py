@@ -227,3 +227,14 @@ def test_torchrun_ddp_on_two_cpu_processes(rollout_dir, tmp_path):
     assert finished.returncode == 0, finished.stderr[-3000:]
     assert finished.stdout.count("parameters") == 2  # rank 0 alone prints the count and the result
     assert load_gpt(out / "gpt.safetensors").spec.provenance["steps"] == 6
+
+
+def test_same_settings_train_the_same_gpt(rollout_dir, tmp_path):
+    short = dataclasses.replace(FAST, steps=5, checkpoint_every=5)
+    models = []
+    for run in range(2):
+        torch.randn(3 + run)  # whatever the global generator did before, the trainer's seed decides
+        result = train_gpt(rollout_dir, tmp_path / str(run), TINY, short, default_gpt_sampler(TINY), progress=False)
+        models.append(load_gpt(result.model).state_dict())
+    for name, value in models[0].items():
+        assert torch.equal(value, models[1][name]), name

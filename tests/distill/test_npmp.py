@@ -113,3 +113,14 @@ def test_rerunning_a_finished_distillation_keeps_the_decoder_file(distilled, rol
     before = file_sha256(result.decoder)
     again = train_npmp(rollout_dir, out, SMALL, FAST, SAMPLER, progress=False)
     assert again.outcome.already_finished and file_sha256(again.decoder) == before
+
+
+def test_same_settings_train_the_same_decoder(rollout_dir, tmp_path):
+    short = dataclasses.replace(FAST, steps=10, checkpoint_every=10)
+    decoders = []
+    for run in range(2):
+        torch.randn(3 + run)  # whatever the global generator did before, the trainer's seed decides
+        result = train_npmp(rollout_dir, tmp_path / str(run), SMALL, short, SAMPLER, progress=False)
+        decoders.append(load_decoder(result.decoder).state_dict())
+    for name, value in decoders[0].items():
+        assert torch.equal(value, decoders[1][name]), name
