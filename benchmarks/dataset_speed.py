@@ -32,12 +32,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from distill import dataset_schema as schema
-from distill.dataset import RolloutDataset
-from distill.rollouts import PlaybackPolicy, RolloutConfig, rollout_clip
-from distill.sampler import SamplerConfig, WindowDataset
-from tasks.clip_format import list_clips
-from tasks.clips import ensure_synthetic_library, snippets_of_clip
+from distill.dataset import schema
+from distill.dataset.reader import RolloutDataset
+from distill.dataset.sampler import SamplerConfig, WindowDataset
+from distill.dataset.writer import PlaybackPolicy, RolloutConfig, rollout_clip
+from tasks.clips.format import list_clips
+from tasks.clips.snippets import snippets_of_clip
+from tasks.clips.sources import ensure_synthetic_library
 from tasks.observables import OBSERVABLE_SETS
 
 GROUPS = {

@@ -26,9 +26,9 @@ import time
 import mujoco
 import numpy as np
 
-from tasks.clips import ensure_synthetic_library
-from tasks.stock import make_stock_tracking
-from tasks.tracking import ClipTrackingEnv, TrackingConfig, reference_action
+from tasks.clips.sources import ensure_synthetic_library
+from tasks.tracking.env import ClipTrackingEnv, TrackingConfig, reference_action
+from tasks.tracking.stock import make_stock_tracking
 
 CONFIG = TrackingConfig(snippets=("SYN_walk_slow",), ref_steps=(1, 2, 3, 4, 5), observables="full")
 

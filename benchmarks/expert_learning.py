@@ -24,10 +24,10 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from distill.expert_config import ExpertConfig
-from distill.expert_files import ExpertDir
-from distill.expert_training import train_expert
-from tasks.atomic import atomic_path, write_json
+from distill.experts.config import ExpertConfig
+from distill.experts.files import ExpertDir
+from distill.experts.training import train_expert
+from foundation.atomic import atomic_path, write_json
 
 
 def steps_to(evaluations: list[dict], threshold: float) -> int | None:

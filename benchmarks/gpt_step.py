@@ -29,7 +29,7 @@ import time
 import numpy as np
 import torch
 
-from distill.gpt import GptConfig, GptSpec, MotionGpt
+from distill.gpt.model import GptConfig, GptSpec, MotionGpt
 from tasks.observables import OBSERVABLE_SETS, observation_sizes
 
 

@@ -37,8 +37,8 @@ import torch.distributed as dist
 from torch import nn
 from tqdm.auto import tqdm
 
-from tasks.atomic import atomic_path, write_json
-from tasks.fingerprints import settings_fingerprint
+from foundation.atomic import atomic_path, write_json
+from foundation.fingerprints import settings_fingerprint
 
 CHECKPOINT = "checkpoint.pt"
 HISTORY = "history.json"

@@ -18,7 +18,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 from hierarchy import LatentActionVecEnv, load_decoder
 from hierarchy.transfer import TransferConfig
-from tasks.walker_task import WalkerTaskEnv
+from tasks.downstream.walker_task import WalkerTaskEnv
 
 
 class FaceHeading(WalkerTaskEnv):

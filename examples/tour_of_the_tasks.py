@@ -6,7 +6,7 @@ Run: python examples/tour_of_the_tasks.py
 import numpy as np
 
 import tasks
-from tasks.tracking import reference_action
+from tasks.tracking.env import reference_action
 
 # 1. Every task is one call away; overrides are fields of the task's config.
 for name in tasks.task_names():
@@ -32,7 +32,7 @@ print(
 )
 
 # 3. Downstream tasks score velocities with a pure function you can reuse.
-from tasks.velocity_control import reward  # noqa: E402
+from tasks.downstream.velocity_control import reward
 
 print(
     f"\nvelocity reward, 1 m/s east vs. commanded 1.2 m/s north-east: "

@@ -26,10 +26,8 @@ reads tensors and JSON only; no pickled code is ever run.
 
 from __future__ import annotations
 
-import datetime
-import itertools
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -38,14 +36,11 @@ import numpy as np
 import torch
 from torch import nn
 
-from hierarchy.described_file import read_described, write_described
+from foundation.described_file import read_described, write_described
+from foundation.networks import ACTIVATIONS, mlp
 
 DECODER_FORMAT = "mocap_hierarchy.decoder"
 DECODER_SCHEMA_VERSION = 1
-
-ACTIVATIONS: dict[str, type[nn.Module]] = {"elu": nn.ELU, "relu": nn.ReLU, "tanh": nn.Tanh}
-"""Hidden-layer activations a decoder file may name."""
-
 
 class DecoderFileError(ValueError):
     """A decoder file is missing, unreadable, or of another format or version."""
@@ -119,27 +114,6 @@ class DecoderSpec:
             return cls(**fields)
         except TypeError as error:
             raise DecoderFileError(f"{where}: {error}") from None
-
-
-def hidden_stack(input_size: int, hidden_layers: Sequence[int], activation: str, layer_norm: bool = False):
-    """``(Linear [-> LayerNorm] -> activation)`` per hidden layer (stable-baselines3's ``mlp_extractor`` layout)."""
-    layers: list[nn.Module] = []
-    for size_in, size_out in itertools.pairwise([input_size, *hidden_layers]):
-        layers.append(nn.Linear(size_in, size_out))
-        if layer_norm:
-            layers.append(nn.LayerNorm(size_out))
-        layers.append(ACTIVATIONS[activation]())
-    return nn.Sequential(*layers)
-
-
-def mlp(input_size: int, hidden_layers: Sequence[int], output_size: int, activation: str, layer_norm: bool):
-    """:func:`hidden_stack`, then a final ``Linear``.
-
-    For three hidden layers with layer norm the parameterised modules sit at
-    indices 0, 1, 3, 4, 6, 7 and 9 (MoCapAct's layout too).
-    """
-    last = hidden_layers[-1] if hidden_layers else input_size
-    return nn.Sequential(*hidden_stack(input_size, hidden_layers, activation, layer_norm), nn.Linear(last, output_size))
 
 
 def decoder_network(spec: DecoderSpec) -> nn.Sequential:
@@ -327,14 +301,3 @@ def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") ->
     except RuntimeError as error:
         raise DecoderFileError(f"{path}: weights do not match the described architecture ({error})") from None
     return decoder.to(device)
-
-
-def provenance(**facts: Any) -> dict[str, Any]:
-    """Provenance facts plus the date and library version."""
-    from mocap_hierarchy import __version__
-
-    return {
-        **facts,
-        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "library_version": __version__,
-    }

@@ -20,9 +20,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from hierarchy.decoder import hidden_stack
-from hierarchy.described_file import read_described, write_described
-from hierarchy.latent_env import observation_sizes
+from foundation.described_file import read_described, write_described
+from foundation.networks import hidden_stack
+from foundation.sb3 import sb3_policy_layout
 from tasks.observables import flat_batch
 
 TASK_POLICY_FORMAT = "mocap_hierarchy.task_policy"
@@ -123,12 +123,6 @@ def load_task_policy(path: str | os.PathLike) -> TaskPolicy:
     policy = TaskPolicy(spec, tensors["obs_mean"].numpy(), tensors["obs_var"].numpy(), action_size)
     policy.load_state_dict(tensors)
     return policy
-
-
-def sb3_policy_layout(model) -> tuple[dict[str, int], tuple[int, ...]]:
-    """``(observation sizes in the space's key order, policy hidden layers)`` of a stable-baselines3 PPO."""
-    net_arch = model.policy.net_arch
-    return observation_sizes(model.observation_space), tuple(net_arch["pi"] if isinstance(net_arch, dict) else net_arch)
 
 
 def task_policy_from_sb3(model, vecnormalize, spec_fields: dict[str, Any]) -> TaskPolicy:

@@ -27,11 +27,13 @@ import torch
 from stable_baselines3.common.callbacks import BaseCallback
 from tqdm.auto import tqdm
 
-from hierarchy.decoder import LatentDecoder, load_decoder, provenance
+from foundation.atomic import write_json
+from foundation.fingerprints import file_sha256, settings_fingerprint
+from foundation.provenance import provenance
+from foundation.sb3 import save_sb3
+from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
-from tasks.atomic import save_sb3, write_json
-from tasks.fingerprints import file_sha256, settings_fingerprint
 
 POLICY_FILE = "policy.safetensors"
 CHECKPOINT_DIR = "checkpoint"

@@ -4,4 +4,8 @@ This package holds the command line that composes the library's packages
 (``tasks``, ``distill``, ``hierarchy``); each contributes its own subcommands.
 """
 
-__version__ = "0.1.0"
+from foundation.provenance import library_version
+
+__version__ = library_version()
+
+__all__ = ["__version__"]

@@ -6,16 +6,16 @@ import argparse
 import sys
 from pathlib import Path
 
+from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
 from mocap_hierarchy import __version__
-from mocap_hierarchy.config_cli import add_dataclass_arguments, dataclass_from_args
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The full argument parser (every package adds its subcommands)."""
-    from distill import cli as distill_cli
-    from distill import gpt_cli
-    from hierarchy import cli as hierarchy_cli
-    from tasks import cli as tasks_cli
+    from mocap_hierarchy.commands import clips as tasks_cli
+    from mocap_hierarchy.commands import distill as distill_cli
+    from mocap_hierarchy.commands import gpt as gpt_cli
+    from mocap_hierarchy.commands import hierarchy as hierarchy_cli
 
     parser = argparse.ArgumentParser(
         prog="mocap-hierarchy",
@@ -63,7 +63,7 @@ def _quickstart(args: argparse.Namespace) -> None:
 
 
 def _record(args: argparse.Namespace) -> None:
-    from hierarchy.cli import parse_settings
+    from mocap_hierarchy.commands.hierarchy import parse_settings
     from mocap_hierarchy.record import record
 
     result = record(
@@ -90,7 +90,7 @@ def _view(args: argparse.Namespace) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Runs the command line; returns the exit status."""
-    from tasks.video import VideoUnavailableError
+    from tasks.viz.video import VideoUnavailableError
 
     parser = build_parser()
     args = parser.parse_args(argv)

@@ -30,10 +30,11 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
-from tasks.atomic import atomic_path, write_json
-from tasks.clip_format import list_clips
-from tasks.clips import ensure_synthetic_library, snippets_of_clip
-from tasks.tracking import ClipTrackingEnv, TrackingConfig, reference_action
+from foundation.atomic import atomic_path, write_json
+from tasks.clips.format import list_clips
+from tasks.clips.snippets import snippets_of_clip
+from tasks.clips.sources import ensure_synthetic_library
+from tasks.tracking.env import ClipTrackingEnv, TrackingConfig, reference_action
 from tasks.walker import build_walker
 
 
@@ -148,12 +149,12 @@ def _playback(snippets: list[str], library: str, episodes: int, config: Quicksta
 
 
 def _experts(folder: Path, library: str, config: QuickstartConfig) -> list[dict]:
-    from distill.evaluation import EvaluationConfig, evaluate_policy
-    from distill.expert_config import ExpertConfig
-    from distill.expert_files import expert_dir_for
-    from distill.expert_policy import load_expert
-    from distill.expert_training import expert_jobs
-    from distill.fanout import run_jobs, summarise
+    from distill.experts.config import ExpertConfig
+    from distill.experts.evaluation import EvaluationConfig, evaluate_policy
+    from distill.experts.fanout import run_jobs, summarise
+    from distill.experts.files import expert_dir_for
+    from distill.experts.policy import load_expert
+    from distill.experts.training import expert_jobs
 
     steps = max(2048, int(config.expert_steps * config.scale) // 2048 * 2048)
     expert_config = ExpertConfig(
@@ -193,8 +194,8 @@ def _experts(folder: Path, library: str, config: QuickstartConfig) -> list[dict]
 
 
 def _dataset(experts: Path, out: Path, library: str, config: QuickstartConfig) -> dict:
-    from distill.dataset import RolloutDataset
-    from distill.rollouts import RolloutConfig, rollout_experts
+    from distill.dataset.reader import RolloutDataset
+    from distill.dataset.writer import RolloutConfig, rollout_experts
 
     episodes = max(1, round(config.rollouts_per_snippet * config.scale))
     files = rollout_experts(experts, out, RolloutConfig(n_start=episodes, n_rsi=episodes, seed=config.seed), library)
@@ -205,9 +206,9 @@ def _dataset(experts: Path, out: Path, library: str, config: QuickstartConfig) -
 
 def _distill(data: Path, out: Path, expert_rows: list[dict], config: QuickstartConfig) -> dict:
     """Distils, then evaluates like the expert rows (deterministic, from the snippet start)."""
-    from distill.npmp import NpmpConfig
-    from distill.npmp_evaluation import PolicyEvaluationConfig, evaluate_multi_clip, fraction_of_experts
-    from distill.npmp_training import default_sampler, train_npmp
+    from distill.npmp.evaluation import PolicyEvaluationConfig, evaluate_multi_clip, fraction_of_experts
+    from distill.npmp.model import NpmpConfig
+    from distill.npmp.training import default_sampler, train_npmp
     from distill.trainer import TrainerConfig
 
     steps = max(10, round(config.distill_steps * config.scale))
@@ -224,7 +225,7 @@ def _distill(data: Path, out: Path, expert_rows: list[dict], config: QuickstartC
     result = train_npmp(data, out, npmp, trainer, replace(default_sampler(), window=10))
     experts = {row["snippet"]: row for row in expert_rows if "normalized_reward" in row}
     evaluation = PolicyEvaluationConfig(episodes=max(4, round(10 * config.scale)), init="start", seed=config.seed)
-    from distill.npmp import load_policy
+    from distill.npmp.model import load_policy
 
     rows = evaluate_multi_clip(load_policy(result.policy), sorted(experts), evaluation, progress=True)
     return {

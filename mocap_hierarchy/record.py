@@ -27,7 +27,7 @@ import gymnasium as gym
 import numpy as np
 
 import tasks
-from hierarchy.described_file import METADATA_KEY
+from foundation.described_file import METADATA_KEY
 
 Act = Callable[[dict[str, np.ndarray]], np.ndarray]
 Rollout = tuple[gym.Env, Act, Callable[[], None] | None]
@@ -100,14 +100,14 @@ def _batched(observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 
 def _single(prompt, env: gym.Env) -> Rollout:
-    """A batched prompt policy (:mod:`distill.motion_completion`) driving one environment."""
+    """A batched prompt policy (:mod:`distill.gpt.completion`) driving one environment."""
     unwrapped = env.unwrapped
     return env, lambda observation: prompt.act(_batched(observation), [unwrapped], [0])[0], lambda: prompt.reset(0)
 
 
 def _expert(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
-    from distill.expert_policy import load_expert
-    from distill.motion_completion import ExpertPrompt
+    from distill.experts.policy import load_expert
+    from distill.gpt.completion import ExpertPrompt
 
     _require_task(task, TRACKING_TASKS, "an expert")
     prompt = ExpertPrompt(load_expert(path))  # makes residual actions absolute itself
@@ -115,7 +115,7 @@ def _expert(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
 
 
 def _multi_clip(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
-    from distill.npmp import MultiClipPrompt, load_policy
+    from distill.npmp.model import MultiClipPrompt, load_policy
 
     _require_task(task, ("tracking",), "the multi-clip policy")
     prompt = MultiClipPrompt(load_policy(path), rows=1)
@@ -141,9 +141,9 @@ def _task_policy(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
 
 
 def _gpt(task: str, path: Path, overrides: dict[str, Any], prompt: str | None) -> Rollout:
-    from distill.expert_policy import load_expert
-    from distill.gpt import load_gpt
-    from distill.motion_completion import CompletionController, ExpertPrompt
+    from distill.experts.policy import load_expert
+    from distill.gpt.completion import CompletionController, ExpertPrompt
+    from distill.gpt.model import load_gpt
 
     _require_task(task, ("motion_completion",), "the GPT")
     if prompt is None:
@@ -167,13 +167,13 @@ def record(
     video: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
     """Records ``episodes`` of ``policy`` on ``task`` into the ``.rrd`` file ``out`` (and an mp4 when asked)."""
-    from tasks.recording import record_rollout
+    from tasks.viz.recording import record_rollout
 
     if Path(out).suffix != ".rrd":
         raise ValueError(f"the recording file must end in .rrd, got {out}")
     env, act, new_episode = build_rollout(task, policy, overrides, prompt, seed)
     if video is not None:
-        from tasks.video import VideoRecorder
+        from tasks.viz.video import VideoRecorder
 
         env = VideoRecorder(env, video)
     result = record_rollout(env, act, out, episodes=episodes, seed=seed, on_reset=new_episode)

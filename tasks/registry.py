@@ -15,11 +15,11 @@ from typing import Any
 
 import gymnasium as gym
 
-from tasks.go_to_target import GoToTargetConfig, GoToTargetEnv
-from tasks.motion_completion import MotionCompletionConfig, MotionCompletionEnv
-from tasks.synthetic.library import SYNTHETIC_CLIPS
-from tasks.tracking import ClipTrackingEnv, TrackingConfig
-from tasks.velocity_control import VelocityControlConfig, VelocityControlEnv
+from tasks.clips.synthetic.library import SYNTHETIC_CLIPS
+from tasks.downstream.go_to_target import GoToTargetConfig, GoToTargetEnv
+from tasks.downstream.motion_completion import MotionCompletionConfig, MotionCompletionEnv
+from tasks.downstream.velocity_control import VelocityControlConfig, VelocityControlEnv
+from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 
 GYM_NAMESPACE = "MocapHierarchy"
 

@@ -26,7 +26,7 @@ def isolated_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="session")
 def clip_library(isolated_cache: Path) -> Path:
     """The full synthetic library, generated once (about 10 s)."""
-    from tasks.clips import ensure_synthetic_library
+    from tasks.clips.sources import ensure_synthetic_library
 
     return ensure_synthetic_library(progress=False)
 

@@ -4,7 +4,7 @@ from pathlib import Path
 import pytest
 
 from mocap_hierarchy.cli import main
-from tasks.clip_format import list_clips
+from tasks.clips.format import list_clips
 
 
 def test_split_prints_the_seed_snippets(capsys):

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from distill.expert_config import ExpertConfig
+from distill.experts.config import ExpertConfig
 
 TINY = ExpertConfig(
     total_steps=1024,
@@ -41,7 +41,7 @@ def snippet() -> str:
 @pytest.fixture(scope="session")
 def trained_expert(clip_library, tmp_path_factory) -> Path:
     """An expert directory trained with :data:`TINY`."""
-    from distill.expert_training import train_expert
+    from distill.experts.training import train_expert
 
     out = tmp_path_factory.mktemp("experts")
     result = train_expert(SNIPPET, out, TINY, progress=False)
@@ -51,7 +51,7 @@ def trained_expert(clip_library, tmp_path_factory) -> Path:
 @pytest.fixture(scope="session")
 def rollout_dir(clip_library, trained_expert, tmp_path_factory) -> Path:
     """Two clip files: SYN_wave (trained expert + playback) and SYN_stand (playback)."""
-    from distill.rollouts import PlaybackPolicy, RolloutConfig, rollout_clip
+    from distill.dataset.writer import PlaybackPolicy, RolloutConfig, rollout_clip
 
     out = tmp_path_factory.mktemp("rollouts")
     config = RolloutConfig(n_start=2, n_rsi=3, n_envs=4)

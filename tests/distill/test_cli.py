@@ -2,7 +2,7 @@ import json
 
 import pytest
 
-from distill.dataset import RolloutDataset
+from distill.dataset.reader import RolloutDataset
 from mocap_hierarchy.cli import main
 
 TINY_FLAGS = [

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 from stable_baselines3 import PPO
 
-from distill.expert_config import ExpertConfig, PiecewiseLearningRate
-from distill.expert_files import ExpertDir, ExpertFilesError, find_experts
-from distill.expert_policy import load_expert
-from distill.expert_training import ConfigMismatchError, _Trainer, keep_training, train_expert
-from tasks.tracking import ClipTrackingEnv, TrackingConfig
+from distill.experts.config import ExpertConfig, PiecewiseLearningRate
+from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
+from distill.experts.policy import load_expert
+from distill.experts.training import ConfigMismatchError, _Trainer, keep_training, train_expert
+from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 
 
 def test_training_writes_the_seed_layout(trained_expert, snippet):
@@ -143,7 +143,7 @@ def test_foreign_expert_needs_trust_to_unpickle(trained_expert, tmp_path, snippe
 
 
 def test_automatic_environment_count_divides_the_update(monkeypatch):
-    import distill.expert_config as module
+    import distill.experts.config as module
 
     monkeypatch.setattr(module.os, "cpu_count", lambda: 6)
     assert ExpertConfig().resolved_envs() == 4  # 8192 steps split over 4 environments

@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from distill.fanout import Job, run_jobs, summarise
+from distill.experts.fanout import Job, run_jobs, summarise
 
 sys.path.insert(0, str(Path(__file__).parent))  # spawned workers inherit sys.path
 import fanout_jobs

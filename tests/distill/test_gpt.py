@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 import torch
 
-from distill.dataset_schema import DatasetError
-from distill.gpt import GptConfig, GptFileError, GptSpec, MotionGpt, load_gpt
-from distill.gpt_training import default_gpt_sampler, default_gpt_trainer, train_gpt
+from distill.dataset.schema import DatasetError
+from distill.gpt.model import GptConfig, GptFileError, GptSpec, MotionGpt, load_gpt
+from distill.gpt.training import default_gpt_sampler, default_gpt_trainer, train_gpt
 from distill.trainer import CheckpointMismatchError, TrainerConfig
-from hierarchy.described_file import METADATA_KEY
+from foundation.described_file import METADATA_KEY
 from tasks.observables import OBSERVABLE_SETS, observation_sizes
 
 SIZES = observation_sizes(OBSERVABLE_SETS["gpt"])
@@ -155,7 +155,7 @@ def test_gpt_file_round_trip_is_exact_and_self_describing(trained, rollout_dir):
         assert {"observation_mean", "observation_std"} <= set(f.keys())
     assert description["format"] == "mocap_hierarchy.motion_gpt" and description["config"]["layers"] == 2
     # The stored normaliser is the dataset's statistics of the GPT observables.
-    from distill.dataset import RolloutDataset
+    from distill.dataset.reader import RolloutDataset
 
     dataset = RolloutDataset(rollout_dir)
     stats = dataset.statistics()
@@ -192,7 +192,7 @@ def test_files_of_other_kinds_or_mismatched_weights_are_refused(trained, tmp_pat
     with pytest.raises(FileNotFoundError, match="gpt train"):
         load_gpt(tmp_path / "missing.safetensors")
     decoder_like = tmp_path / "decoder.safetensors"
-    from hierarchy.described_file import write_described
+    from foundation.described_file import write_described
 
     write_described(decoder_like, {"x": torch.zeros(1)}, "mocap_hierarchy.decoder", 1, {})
     with pytest.raises(GptFileError, match="not a mocap-hierarchy motion GPT file"):

@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from distill.motion_completion import CompletionConfig, ExpertPrompt, complete_motions, completion_table
+from distill.gpt.completion import CompletionConfig, ExpertPrompt, complete_motions, completion_table
 from mocap_hierarchy.cli import main
 from tests.distill.test_gpt import random_gpt
 
@@ -73,8 +73,8 @@ def test_bad_settings_are_refused():
 
 
 def test_expert_prompt_makes_residual_actions_absolute(trained_expert, clip_library):
-    from distill.expert_policy import load_expert
-    from tasks.motion_completion import MotionCompletionConfig, MotionCompletionEnv
+    from distill.experts.policy import load_expert
+    from tasks.downstream.motion_completion import MotionCompletionConfig, MotionCompletionEnv
 
     expert = load_expert(trained_expert)
     prompt = ExpertPrompt(expert)

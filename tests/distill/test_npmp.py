@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from distill.npmp import NpmpConfig, _gaussian_kl, load_policy
-from distill.npmp_training import default_sampler, train_npmp
+from distill.npmp.model import NpmpConfig, _gaussian_kl, load_policy
+from distill.npmp.training import default_sampler, train_npmp
 from distill.trainer import CheckpointMismatchError, TrainerConfig
 from hierarchy import load_decoder
 
@@ -107,7 +107,7 @@ def test_torchrun_ddp_on_two_cpu_processes(rollout_dir, tmp_path):
 
 
 def test_rerunning_a_finished_distillation_keeps_the_decoder_file(distilled, rollout_dir):
-    from tasks.fingerprints import file_sha256
+    from foundation.fingerprints import file_sha256
 
     result, out = distilled
     before = file_sha256(result.decoder)

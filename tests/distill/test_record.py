@@ -6,7 +6,7 @@ import dataclasses
 
 import numpy as np
 
-from distill.npmp import NpmpConfig, NpmpPolicy, NpmpSpec
+from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec
 from mocap_hierarchy.cli import main
 from tasks.observables import observation_sizes
 from tests.distill.test_gpt import random_gpt

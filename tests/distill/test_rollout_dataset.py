@@ -4,10 +4,10 @@ import h5py
 import numpy as np
 import pytest
 
-from distill import dataset_schema as schema
-from distill.dataset import RolloutDataset
-from distill.rollouts import PlaybackPolicy, RolloutConfig, gae, is_complete, rollout_clip
-from tasks.clip_format import read_clip
+from distill.dataset import schema
+from distill.dataset.reader import RolloutDataset
+from distill.dataset.writer import PlaybackPolicy, RolloutConfig, gae, is_complete, rollout_clip
+from tasks.clips.format import read_clip
 from tasks.observables import DECODER
 
 
@@ -111,7 +111,7 @@ def test_rerun_skips_complete_files(rollout_dir):
 
 
 def test_interrupted_write_leaves_nothing_a_reader_accepts(clip_library, tmp_path, monkeypatch):
-    import distill.rollouts as rollouts
+    import distill.dataset.writer as rollouts
 
     entered = []
 

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from distill import dataset_schema as schema
-from distill.dataset import RolloutDataset
-from distill.sampler import SamplerConfig, WindowDataset
+from distill.dataset import schema
+from distill.dataset.reader import RolloutDataset
+from distill.dataset.sampler import SamplerConfig, WindowDataset
 from tasks.observables import DECODER
 
 GROUPS = {"state": DECODER, "reference": ("walker/reference_rel_bodies_pos_local", "walker/reference_rel_bodies_quats")}

@@ -13,6 +13,7 @@ from safetensors.torch import save_file
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 import tasks
+from foundation.described_file import METADATA_KEY
 from hierarchy import (
     DecoderFileError,
     DecoderMismatchError,
@@ -22,7 +23,6 @@ from hierarchy import (
     LatentDecoder,
     load_decoder,
 )
-from hierarchy.described_file import METADATA_KEY
 from tasks.observables import DECODER, PROPRIOCEPTION
 
 

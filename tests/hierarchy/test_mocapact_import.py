@@ -15,7 +15,7 @@ from stable_baselines3.common.running_mean_std import RunningMeanStd
 from torch import nn
 
 from hierarchy.decoder import DecoderFileError, load_decoder
-from hierarchy.mocapact_import import MocapActImportError, import_mocapact_checkpoint
+from hierarchy.importers.mocapact import MocapActImportError, import_mocapact_checkpoint
 from tasks.observables import DECODER, PROPRIOCEPTION
 
 EMBED = 8

@@ -7,7 +7,7 @@ import stat
 
 import pytest
 
-from tasks.atomic import atomic_path, write_json
+from foundation.atomic import atomic_path, write_json
 
 
 def test_written_files_get_the_permissions_of_a_plain_file(tmp_path):

@@ -4,7 +4,7 @@ import h5py
 import numpy as np
 import pytest
 
-from tasks.clip_format import FEATURE_SIZES, Clip, ClipFileError, list_clips, read_clip, write_clips
+from tasks.clips.format import FEATURE_SIZES, Clip, ClipFileError, list_clips, read_clip, write_clips
 
 
 def make_clip(clip_id="TEST_clip", steps=20, seed=0) -> Clip:

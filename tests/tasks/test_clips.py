@@ -3,16 +3,8 @@ from pathlib import Path
 
 import pytest
 
-from tasks.clips import (
-    ClipSourceError,
-    SnippetId,
-    find_cmu_file,
-    format_snippet_id,
-    parse_snippet_id,
-    resolve_clip_file,
-    snippets_of_clip,
-    split_snippets,
-)
+from tasks.clips.snippets import SnippetId, format_snippet_id, parse_snippet_id, snippets_of_clip, split_snippets
+from tasks.clips.sources import ClipSourceError, find_cmu_file, resolve_clip_file
 
 
 def test_split_matches_seed_example():
@@ -94,7 +86,7 @@ def test_explicit_clip_file_must_exist(tmp_path):
 
 
 def test_cmu_file_found_in_dm_control_cache_only_at_its_exact_size(monkeypatch, tmp_path):
-    from tasks.clips import CMU_2020_BYTES, CMU_2020_FILENAME
+    from tasks.clips.sources import CMU_2020_BYTES, CMU_2020_FILENAME
 
     monkeypatch.setattr(Path, "home", lambda: tmp_path)
     cached = tmp_path / ".dm_control" / CMU_2020_FILENAME

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 
 import tasks
-from tasks.clip_format import read_clip
-from tasks.go_to_target import GoToTargetConfig, GoToTargetEnv
-from tasks.velocity_control import VelocityControlConfig, VelocityControlEnv, reward
+from tasks.clips.format import read_clip
+from tasks.downstream.go_to_target import GoToTargetConfig, GoToTargetEnv
+from tasks.downstream.velocity_control import VelocityControlConfig, VelocityControlEnv, reward
 
 
 def test_velocity_reward_formula():

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tasks.motion_completion import MotionCompletionConfig, MotionCompletionEnv
+from tasks.downstream.motion_completion import MotionCompletionConfig, MotionCompletionEnv
 
 SHORT = "SYN_stand-0-40"
 

@@ -13,7 +13,7 @@ import pytest
 import rerun.chunk
 
 import tasks
-from tasks.recording import RerunRecorder, record_rollout
+from tasks.viz.recording import RerunRecorder, record_rollout
 
 
 def rerun_binary() -> str:

@@ -4,8 +4,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from tasks.clip_format import list_clips, read_clip
-from tasks.synthetic.library import SYNTHETIC_CLIPS, generate_clip, recipe
+from tasks.clips.format import list_clips, read_clip
+from tasks.clips.synthetic.library import SYNTHETIC_CLIPS, generate_clip, recipe
 from tasks.walker import CONTROL_TIMESTEP
 
 WALKS = ["SYN_walk_slow", "SYN_walk_fast", "SYN_turn_left", "SYN_turn_right", "SYN_walk_backward"]
@@ -185,6 +185,6 @@ def test_generation_is_deterministic(clip_library, walker):
 
 @pytest.mark.slow
 def test_whole_library_is_byte_identical_across_runs(clip_library, tmp_path):
-    from tasks.synthetic.library import write_synthetic_library
+    from tasks.clips.synthetic.library import write_synthetic_library
 
     assert write_synthetic_library(tmp_path / "again.h5", progress=False).read_bytes() == clip_library.read_bytes()

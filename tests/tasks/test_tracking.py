@@ -2,9 +2,9 @@ import h5py
 import numpy as np
 import pytest
 
-from tasks.clip_format import ClipFileError
+from tasks.clips.format import ClipFileError
 from tasks.observables import OBSERVABLE_SETS
-from tasks.tracking import ClipMismatchError, ClipTrackingEnv, TrackingConfig, reference_action
+from tasks.tracking.env import ClipMismatchError, ClipTrackingEnv, TrackingConfig, reference_action
 
 
 @pytest.fixture(scope="module")

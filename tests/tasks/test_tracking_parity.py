@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from tasks.stock import make_stock_tracking, stock_start
-from tasks.tracking import ClipTrackingEnv, TrackingConfig, reference_action
+from tasks.tracking.env import ClipTrackingEnv, TrackingConfig, reference_action
+from tasks.tracking.stock import make_stock_tracking, stock_start
 
 SNIPPETS = ("SYN_walk_slow-0-200", "SYN_squat", "SYN_wave-100-300", "SYN_turn_left-149-331")
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 import tasks
-from tasks import video
+from tasks.viz import video
 
 REPOSITORY = Path(__file__).resolve().parents[2]
 PROBE = (

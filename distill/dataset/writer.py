@@ -1,0 +1,414 @@
+"""Rolling experts out into the rollout dataset (seed A.2), one file per clip.
+
+Each snippet's expert runs S episodes from the snippet's start and R from
+random frames, with its Gaussian action noise (std 0.1), in a tracking
+environment observing everything (``ref_steps`` 1..5, the ``rollout``
+observable set: 2868 values per step). Episodes store the absolute actions
+the humanoid received (also for residual experts), the mean actions, their
+log-probabilities, rewards, the expert's values and GAE advantages.
+
+Files are written atomically and a rerun skips clips whose file is complete.
+"""
+
+from __future__ import annotations
+
+import os
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Protocol
+
+import h5py
+import numpy as np
+from tqdm.auto import tqdm
+
+from distill.dataset import schema
+from distill.experts.fanout import Job
+from distill.experts.files import find_experts
+from distill.experts.policy import ExpertOutput, gaussian_log_prob, load_expert
+from foundation.atomic import atomic_path
+from foundation.provenance import library_version
+from foundation.lockstep import Lockstep
+from tasks.clips.snippets import parse_snippet_id
+from tasks.observables import OBSERVABLE_SETS, observation_sizes
+from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
+from tasks.walker import WalkerModel, build_walker
+
+ROLLOUT_REF_STEPS = (1, 2, 3, 4, 5)
+
+
+class RolloutPolicy(Protocol):
+    """What a rollout needs from an expert (``ExpertPolicy`` and ``PlaybackPolicy`` fit)."""
+
+    keys: list[str]
+
+    @property
+    def residual_actions(self) -> bool:
+        """Whether actions are offsets from the reference pose."""
+        ...
+
+    @property
+    def gamma(self) -> float:
+        """Discount factor for the advantages."""
+        ...
+
+    @property
+    def gae_lambda(self) -> float:
+        """GAE parameter."""
+        ...
+
+    def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
+        """Batched actions (see ``ExpertPolicy.act``)."""
+        ...
+
+
+@dataclass
+class PlaybackPolicy:
+    """A stand-in expert: zero residual (the reference pose) plus Gaussian noise.
+
+    Needs no training, so tests and benchmarks can build realistic datasets;
+    its values are zero.
+    """
+
+    action_std: float = 0.1
+    keys: list[str] = field(default_factory=lambda: ["walker/time_in_clip"])
+    residual_actions: bool = True
+    gamma: float = 0.95
+    gae_lambda: float = 0.95
+
+    def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
+        """Zero mean residuals, sampled with ``action_std`` when ``rng`` is given."""
+        count = len(next(iter(observations.values())))
+        mean = np.zeros((count, 56))
+        sample = mean if rng is None else mean + self.action_std * rng.standard_normal(mean.shape)
+        log_prob = gaussian_log_prob(sample, mean, self.action_std)
+        return ExpertOutput(np.clip(sample, -1, 1), mean, log_prob, np.zeros(count))
+
+
+@dataclass
+class Episode:
+    """One rolled-out episode (float32 arrays).
+
+    Attributes:
+        observations: ``(T + 1, D)`` every observable, sorted by key.
+        actions: ``(T, 56)`` sampled actions the humanoid received.
+        mean_actions: ``(T, 56)`` the expert's mean actions (absolute).
+        log_probs: ``(T,)`` log-density of the sampled policy outputs.
+        rewards: ``(T,)``.
+        values: ``(T,)`` the expert's value estimates.
+        advantages: ``(T,)`` GAE.
+        terminated: The episode ended by failing (not by reaching the end).
+        normalized_return: MoCapAct's normalised episode reward.
+        normalized_length: MoCapAct's normalised episode length.
+    """
+
+    observations: np.ndarray
+    actions: np.ndarray
+    mean_actions: np.ndarray
+    log_probs: np.ndarray
+    rewards: np.ndarray
+    values: np.ndarray
+    advantages: np.ndarray
+    terminated: bool
+    normalized_return: float
+    normalized_length: float
+
+
+def gae(rewards: np.ndarray, values: np.ndarray, gamma: float, lam: float) -> np.ndarray:
+    """Generalised advantage estimates of one episode, bootstrapping zero after its end (as MoCapAct)."""
+    advantages = np.zeros(len(rewards))
+    running = 0.0
+    for t in range(len(rewards) - 1, -1, -1):
+        next_value = values[t + 1] if t + 1 < len(values) else 0.0
+        delta = rewards[t] + gamma * next_value - values[t]
+        running = delta + gamma * lam * running
+        advantages[t] = running
+    return advantages
+
+
+def rollout_snippet(
+    policy: RolloutPolicy,
+    snippet: str,
+    episodes: int,
+    init: str,
+    clips: str | None = None,
+    seed: int = 0,
+    n_envs: int = 8,
+    walker: WalkerModel | None = None,
+    min_steps: int = 9,
+) -> list[Episode]:
+    """Rolls a policy out on one snippet, several environments in lockstep.
+
+    Args:
+        policy: The expert.
+        snippet: Snippet id.
+        episodes: Number of episodes.
+        init: ``start`` or ``random``.
+        clips: Clip file.
+        seed: Seed of starts and action noise.
+        n_envs: Environments stepped together (one batched policy call per step).
+        walker: Shared walker model.
+        min_steps: Random starts exclude the last ``min_steps + 1`` frames.
+    """
+    walker = walker or build_walker()
+    config = TrackingConfig(
+        snippets=(snippet,),
+        clips=clips,
+        ref_steps=ROLLOUT_REF_STEPS,
+        observables="rollout",
+        init=init,
+        min_steps=min_steps,
+        residual_actions=policy.residual_actions,
+    )
+    rng = np.random.default_rng(seed)
+    n_envs = max(1, min(n_envs, episodes))
+    envs = [ClipTrackingEnv(config, walker=walker) for _ in range(n_envs)]
+    lockstep = Lockstep(envs, episodes, [seed * 7919 + i for i in range(n_envs)])
+    keys = list(OBSERVABLE_SETS["rollout"])
+    finished: list[list[Episode]] = [[] for _ in range(n_envs)]
+    buffers = [_new_buffer(observation, keys) for observation in lockstep.observations]
+    while lockstep.active:
+        output = policy.act(lockstep.batch(policy.keys), rng)
+        for row, i in enumerate(lockstep.active):  # before stepping moves the reference on
+            buffers[i]["mean_actions"].append(envs[i].absolute_action(output.mean_actions[row]))
+        for row, step in enumerate(lockstep.step(output.actions)):
+            buffer = buffers[step.env]
+            buffer["actions"].append(step.info["action"])
+            buffer["log_probs"].append(output.log_probs[row])
+            buffer["rewards"].append(step.reward)
+            buffer["values"].append(output.values[row])
+            buffer["observations"].append(_flatten(step.observation, keys))
+            if step.done:
+                finished[step.env].append(_episode(buffer, step.terminated, step.info, policy))
+                if step.next_observation is not None:
+                    buffers[step.env] = _new_buffer(step.next_observation, keys)
+    return [episode for per_env in finished for episode in per_env]
+
+
+def _new_buffer(first_observation: dict[str, np.ndarray], keys: list[str]) -> dict[str, list]:
+    buffer: dict[str, list] = {k: [] for k in ("actions", "mean_actions", "log_probs", "rewards", "values")}
+    buffer["observations"] = [_flatten(first_observation, keys)]
+    return buffer
+
+
+def _flatten(observation: dict[str, np.ndarray], keys: list[str]) -> np.ndarray:
+    return np.concatenate([observation[k] for k in keys], dtype=np.float32)
+
+
+def _episode(buffer: dict, terminated: bool, info: dict, policy: RolloutPolicy) -> Episode:
+    rewards = np.asarray(buffer["rewards"], dtype=np.float64)
+    values = np.asarray(buffer["values"], dtype=np.float64)
+    return Episode(
+        observations=np.stack(buffer["observations"]),
+        actions=np.asarray(buffer["actions"], dtype=np.float32),
+        mean_actions=np.asarray(buffer["mean_actions"], dtype=np.float32),
+        log_probs=np.asarray(buffer["log_probs"], dtype=np.float32),
+        rewards=rewards.astype(np.float32),
+        values=values.astype(np.float32),
+        advantages=gae(rewards, values, policy.gamma, policy.gae_lambda).astype(np.float32),
+        terminated=bool(terminated),
+        normalized_return=float(info["normalized_episode_reward"]),
+        normalized_length=float(info["normalized_episode_length"]),
+    )
+
+
+# Writing -------------------------------------------------------------------------
+
+
+def observable_indices() -> dict[str, np.ndarray]:
+    """Column indices of every observable in the stored observation vector."""
+    sizes = observation_sizes(OBSERVABLE_SETS["rollout"], ROLLOUT_REF_STEPS)
+    out, start = {}, 0
+    for key, size in sizes.items():
+        out[key] = np.arange(start, start + size, dtype=np.int64)
+        start += size
+    return out
+
+
+def write_rollout_file(
+    path: str | os.PathLike,
+    clip_id: str,
+    snippets: dict[str, tuple[list[Episode], list[Episode]]],
+    n_start: int,
+    n_rsi: int,
+) -> Path:
+    """Writes one clip's rollouts atomically (seed A.2 layout).
+
+    Args:
+        path: Destination ``<clip_id>.hdf5``.
+        clip_id: The clip.
+        snippets: ``{snippet id: (start episodes, random-start episodes)}``.
+        n_start: S (episodes from the snippet start).
+        n_rsi: R (episodes from random frames).
+    """
+    path = Path(path)
+    width = sum(len(v) for v in observable_indices().values())
+    sums = {
+        "obs": np.zeros(width),
+        "obs2": np.zeros(width),
+        **{k: np.zeros(56) for k in ("act", "act2", "mean", "mean2")},
+    }
+    rows = actions = 0
+    with atomic_path(path) as temporary, h5py.File(temporary, "w") as f:
+        f.attrs[schema.SCHEMA_ATTRIBUTE] = schema.SCHEMA_VERSION
+        f.attrs["clip_id"] = clip_id
+        f.attrs["library_version"] = library_version()
+        f[schema.N_START] = np.int64(n_start)
+        f[schema.N_RSI] = np.int64(n_rsi)
+        f[schema.REF_STEPS] = np.asarray(ROLLOUT_REF_STEPS, dtype=np.int64)
+        for key, indices in observable_indices().items():
+            f[schema.observable_index_path(key)] = indices
+        for snippet, (start_episodes, random_episodes) in sorted(snippets.items()):
+            group = f.create_group(snippet)
+            episodes = start_episodes + random_episodes
+            for index, episode in enumerate(episodes):
+                e = group.create_group(str(index))
+                e[schema.OBSERVATIONS] = episode.observations
+                e[schema.ACTIONS] = episode.actions
+                e[schema.MEAN_ACTIONS] = episode.mean_actions
+                e[schema.LOG_PROBS] = episode.log_probs
+                e[schema.REWARDS] = episode.rewards
+                e[schema.VALUES] = episode.values
+                e[schema.ADVANTAGES] = episode.advantages
+                observations = episode.observations.astype(np.float64)
+                sums["obs"] += observations.sum(0)
+                sums["obs2"] += (observations**2).sum(0)
+                sums["act"] += episode.actions.sum(0)
+                sums["act2"] += (episode.actions.astype(np.float64) ** 2).sum(0)
+                sums["mean"] += episode.mean_actions.sum(0)
+                sums["mean2"] += (episode.mean_actions.astype(np.float64) ** 2).sum(0)
+                rows += len(observations)
+                actions += len(episode.actions)
+            group[schema.EARLY_TERMINATION] = np.array([e.terminated for e in episodes], dtype=bool)
+            for name, part in ((schema.START_METRICS, start_episodes), (schema.RSI_METRICS, random_episodes)):
+                metrics = group.create_group(name)
+                metrics[schema.EPISODE_RETURNS] = np.array([e.rewards.sum() for e in part], dtype=np.float64)
+                metrics[schema.EPISODE_LENGTHS] = np.array([len(e.actions) for e in part], dtype=np.int64)
+                metrics[schema.NORM_EPISODE_RETURNS] = np.array([e.normalized_return for e in part], dtype=np.float64)
+                metrics[schema.NORM_EPISODE_LENGTHS] = np.array([e.normalized_length for e in part], dtype=np.float64)
+        stats = f.create_group(schema.STATS)
+        for name, total, squares, count in (
+            ("proprio", sums["obs"], sums["obs2"], rows),
+            ("act", sums["act"], sums["act2"], actions),
+            ("mean_act", sums["mean"], sums["mean2"], actions),
+        ):
+            mean = total / max(count, 1)
+            stats[f"{name}_mean"] = mean.astype(np.float32)
+            stats[f"{name}_var"] = np.clip(squares / max(count, 1) - mean**2, 0.0, None).astype(np.float32)
+        stats["count"] = np.int64(rows)
+        stats[schema.ACTION_COUNT] = np.int64(actions)
+    return path
+
+
+def is_complete(path: Path, snippets: list[str], n_start: int, n_rsi: int) -> bool:
+    """Whether ``path`` is a valid rollout file holding these snippets with S and R episodes."""
+    if not path.is_file():
+        return False
+    try:
+        with h5py.File(path, "r") as f:
+            layout = schema.validate(f, str(path))
+            return (
+                layout.version == schema.SCHEMA_VERSION
+                and set(snippets) <= set(layout.snippets)
+                and (layout.n_start, layout.n_rsi) == (n_start, n_rsi)
+            )
+    except (OSError, schema.DatasetError, KeyError):
+        return False
+
+
+@dataclass(frozen=True)
+class RolloutConfig:
+    """Settings of ``mocap-hierarchy rollout`` (defaults: the seed's small dataset, A.3).
+
+    Attributes:
+        n_start: Episodes per snippet from the snippet's start (S).
+        n_rsi: Episodes per snippet from random frames (R).
+        min_steps: Random starts exclude the last ``min_steps + 1`` frames.
+        n_envs: Environments stepped in lockstep.
+        seed: Seed of starts and action noise.
+        trust_pickle: Convert experts without our sidecar from their pickles.
+    """
+
+    n_start: int = 10
+    n_rsi: int = 10
+    min_steps: int = 9
+    n_envs: int = 8
+    seed: int = 0
+    trust_pickle: bool = False
+
+
+def rollout_clip(
+    clip_id: str,
+    experts: dict[str, object],
+    out: str | os.PathLike,
+    config: RolloutConfig,
+    clips: str | None = None,
+    progress: bool = False,
+) -> Path:
+    """Rolls out the experts of one clip into ``out/<clip_id>.hdf5`` (skipped if complete).
+
+    Args:
+        clip_id: The clip.
+        experts: ``{snippet id: expert directory or RolloutPolicy}`` of this clip.
+        out: Dataset folder.
+        config: Rollout settings.
+        clips: Clip file.
+        progress: Show a progress bar over snippets.
+    """
+    path = rollout_path(out, clip_id)
+    if is_complete(path, list(experts), config.n_start, config.n_rsi):
+        return path
+    walker = build_walker()
+    results = {}
+    for number, (snippet, source) in enumerate(
+        tqdm(sorted(experts.items()), desc=f"rollouts {clip_id}", unit="snippet", disable=not progress)
+    ):
+        policy = source if hasattr(source, "act") else load_expert(str(source), config.trust_pickle)
+        seed = config.seed * 1_000_003 + number * 2
+        common = {"clips": clips, "n_envs": config.n_envs, "walker": walker, "min_steps": config.min_steps}
+        start = rollout_snippet(policy, snippet, config.n_start, "start", seed=seed, **common)  # type: ignore[arg-type]
+        random = rollout_snippet(policy, snippet, config.n_rsi, "random", seed=seed + 1, **common)  # type: ignore[arg-type]
+        results[snippet] = (start, random)
+    return write_rollout_file(path, clip_id, results, config.n_start, config.n_rsi)
+
+
+def rollout_path(out: str | os.PathLike, clip_id: str) -> Path:
+    """The dataset file of one clip."""
+    return Path(out) / f"{clip_id}{schema.FILE_SUFFIX}"
+
+
+def experts_by_clip(experts_dir: str | os.PathLike) -> dict[str, dict[str, Path]]:
+    """Every expert under ``experts_dir`` as ``{clip id: {snippet id: expert directory}}``, sorted by clip."""
+    by_clip: dict[str, dict[str, Path]] = defaultdict(dict)
+    for snippet, expert in find_experts(experts_dir).items():
+        by_clip[parse_snippet_id(snippet).clip_id][snippet] = expert.root
+    return dict(sorted(by_clip.items()))
+
+
+def rollout_jobs(
+    experts_dir: str | os.PathLike, out: str | os.PathLike, config: RolloutConfig, clips: str | None = None
+) -> list[Job]:
+    """One fan-out job per clip (see :func:`distill.experts.fanout.run_jobs`), complete files marked done."""
+    return [
+        Job(
+            name=clip_id,
+            function=rollout_clip,
+            kwargs={"clip_id": clip_id, "experts": experts, "out": out, "config": config, "clips": clips},
+            done=is_complete(rollout_path(out, clip_id), list(experts), config.n_start, config.n_rsi),
+        )
+        for clip_id, experts in experts_by_clip(experts_dir).items()
+    ]
+
+
+def rollout_experts(
+    experts_dir: str | os.PathLike,
+    out: str | os.PathLike,
+    config: RolloutConfig | None = None,
+    clips: str | None = None,
+) -> list[Path]:
+    """Rolls out every expert under ``experts_dir``, one file per clip, skipping complete files."""
+    config = config or RolloutConfig()
+    return [
+        rollout_clip(clip, dict(experts), out, config, clips, progress=True)
+        for clip, experts in experts_by_clip(experts_dir).items()
+    ]

@@ -1,0 +1,124 @@
+"""Evaluating snippet experts: MoCapAct's normalised episode reward and length.
+
+Episodes run in several tracking environments in lockstep (see
+:mod:`foundation.lockstep`) with one batched policy call per step.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from tqdm.auto import tqdm
+
+from distill.experts.policy import ExpertPolicy
+from foundation.lockstep import Lockstep
+from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
+from tasks.walker import WalkerModel, build_walker
+
+
+@dataclass(frozen=True)
+class EvaluationConfig:
+    """How to evaluate an expert (defaults: the seed's protocol, B.1.2).
+
+    Attributes:
+        episodes: Number of episodes.
+        init: ``random`` (reference-state initialisation) or ``start`` of the snippet.
+        min_steps: Random starts exclude the last ``min_steps + 1`` frames (30).
+        action_noise: Gaussian noise added to the mean action (0 gives a deterministic policy).
+        termination_threshold: Tracking error that ends an episode (the expert's training value).
+        n_envs: Environments stepped in lockstep.
+        seed: Seed of starts and noise.
+    """
+
+    episodes: int = 1000
+    init: str = "random"
+    min_steps: int = 29
+    action_noise: float = 0.1
+    termination_threshold: float = 0.3
+    n_envs: int = 16
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class EvaluationResult:
+    """Per-episode metrics of one evaluation and their means.
+
+    Attributes:
+        snippet: The snippet evaluated.
+        normalized_reward: Mean normalised episode reward.
+        normalized_length: Mean normalised episode length.
+        episode_return: Mean undiscounted return.
+        episode_length: Mean episode length (steps).
+        per_episode: Lists of the four metrics per episode.
+        config: The evaluation settings.
+    """
+
+    snippet: str
+    normalized_reward: float
+    normalized_length: float
+    episode_return: float
+    episode_length: float
+    per_episode: dict[str, list[float]]
+    config: dict
+
+    def to_json(self) -> dict:
+        """A JSON-ready dict."""
+        return asdict(self)
+
+
+def evaluate_policy(
+    policy: ExpertPolicy,
+    snippet: str,
+    config: EvaluationConfig,
+    clips: str | None = None,
+    walker: WalkerModel | None = None,
+    progress: bool = False,
+) -> EvaluationResult:
+    """Rolls out a policy on its snippet and averages MoCapAct's metrics.
+
+    Args:
+        policy: The expert (its ``residual_actions`` decides the action mode).
+        snippet: Snippet id to track.
+        config: Evaluation settings.
+        clips: Clip file (None: resolved from the snippet id).
+        walker: A compiled walker to share between the environments.
+        progress: Show a progress bar over episodes.
+    """
+    if config.episodes < 1 or config.n_envs < 1:
+        raise ValueError("episodes and n_envs must be positive")
+    walker = walker or build_walker()
+    tracking = TrackingConfig(
+        snippets=(snippet,),
+        clips=clips,
+        ref_steps=(0,),
+        observables=tuple(policy.keys),
+        init=config.init,
+        min_steps=config.min_steps,
+        action_noise=config.action_noise,
+        termination_threshold=config.termination_threshold,
+        residual_actions=policy.spec.residual_actions,
+    )
+    n_envs = min(config.n_envs, config.episodes)
+    envs = [ClipTrackingEnv(tracking, walker=walker) for _ in range(n_envs)]
+    lockstep = Lockstep(envs, config.episodes, [config.seed * 100_003 + i for i in range(n_envs)])
+    metrics: dict[str, list[float]] = {k: [] for k in ("normalized_reward", "normalized_length", "return", "length")}
+    bar = tqdm(total=config.episodes, desc=f"evaluating {snippet}", unit="ep", disable=not progress)
+    while lockstep.active:
+        for step in lockstep.step(policy.mean_actions(lockstep.batch(policy.keys))):
+            if step.done:
+                metrics["normalized_reward"].append(step.info["normalized_episode_reward"])
+                metrics["normalized_length"].append(step.info["normalized_episode_length"])
+                metrics["return"].append(step.info["episode_return"])
+                metrics["length"].append(step.info["episode_length"])
+                bar.update()
+    bar.close()
+    return EvaluationResult(
+        snippet=snippet,
+        normalized_reward=float(np.mean(metrics["normalized_reward"])),
+        normalized_length=float(np.mean(metrics["normalized_length"])),
+        episode_return=float(np.mean(metrics["return"])),
+        episode_length=float(np.mean(metrics["length"])),
+        per_episode=metrics,
+        config=asdict(config),
+    )

@@ -1,0 +1,185 @@
+"""The expert directory format (seed A.1), plus a pickle-free sidecar.
+
+One directory per snippet expert, named by the snippet id::
+
+    <CLIP>-<start>-<end>/
+        clip_info.json                  clip_id, start_step, end_step (A.1)
+        eval_rsi/model/best_model.zip   stable-baselines3 PPO (A.1)
+        eval_rsi/model/vecnormalize.pkl stable-baselines3 VecNormalize (A.1)
+        eval_rsi/model/expert.json      ours: architecture, observations, normaliser, provenance
+        eval_rsi/model/expert.safetensors  ours: the same policy's weights and normaliser statistics
+        eval_rsi/evaluations.json       evaluation history during training
+        config.json                     the ExpertConfig used
+        checkpoint/                     resumable training state (removed once done)
+        done.json                       written when training has finished
+
+``best_model.zip`` and ``vecnormalize.pkl`` load with stable-baselines3's own
+``PPO.load`` and ``VecNormalize.load``, as the seed promises; both unpickle,
+so this library's own consumers (rollouts, evaluation) read the safetensors +
+JSON sidecar instead and never execute code from a file. Experts from
+elsewhere (MoCapAct's release) have no sidecar and can be converted with
+``trust_pickle=True`` when their source is trusted.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from foundation.atomic import write_json
+from tasks.clips.snippets import SnippetId, parse_snippet_id
+
+EXPERT_FORMAT = "mocap_hierarchy.expert"
+EXPERT_FORMAT_VERSION = 1
+
+
+class ExpertFilesError(FileNotFoundError):
+    """An expert directory is missing files or holds unreadable ones."""
+
+
+@dataclass(frozen=True)
+class ExpertDir:
+    """Paths of one expert directory (nothing is read on construction).
+
+    Args:
+        root: The ``<CLIP>-<start>-<end>`` directory.
+    """
+
+    root: Path
+
+    @property
+    def clip_info(self) -> Path:
+        """``clip_info.json``."""
+        return self.root / "clip_info.json"
+
+    @property
+    def model_dir(self) -> Path:
+        """``eval_rsi/model``."""
+        return self.root / "eval_rsi" / "model"
+
+    @property
+    def best_model(self) -> Path:
+        """The stable-baselines3 policy zip."""
+        return self.model_dir / "best_model.zip"
+
+    @property
+    def vecnormalize(self) -> Path:
+        """The stable-baselines3 normaliser pickle."""
+        return self.model_dir / "vecnormalize.pkl"
+
+    @property
+    def sidecar_json(self) -> Path:
+        """Our pickle-free description of the policy."""
+        return self.model_dir / "expert.json"
+
+    @property
+    def sidecar_weights(self) -> Path:
+        """Our pickle-free weights."""
+        return self.model_dir / "expert.safetensors"
+
+    @property
+    def evaluations(self) -> Path:
+        """Evaluation history written during training."""
+        return self.root / "eval_rsi" / "evaluations.json"
+
+    @property
+    def config(self) -> Path:
+        """The training configuration."""
+        return self.root / "config.json"
+
+    @property
+    def checkpoint_dir(self) -> Path:
+        """Resumable training state."""
+        return self.root / "checkpoint"
+
+    @property
+    def checkpoint_model(self) -> Path:
+        """The checkpoint's stable-baselines3 PPO."""
+        return self.checkpoint_dir / "model.zip"
+
+    @property
+    def checkpoint_normaliser(self) -> Path:
+        """The checkpoint's ``VecNormalize``."""
+        return self.checkpoint_dir / "vecnormalize.pkl"
+
+    @property
+    def checkpoint_state(self) -> Path:
+        """The checkpoint's training-callback state (written last: its presence marks a complete checkpoint)."""
+        return self.checkpoint_dir / "state.json"
+
+    @property
+    def done(self) -> Path:
+        """Marker written when training has finished."""
+        return self.root / "done.json"
+
+    @property
+    def policy_files(self) -> tuple[Path, Path, Path]:
+        """The seed A.1 files every expert directory holds."""
+        return self.clip_info, self.best_model, self.vecnormalize
+
+    def is_done(self) -> bool:
+        """Whether training finished and left a complete expert."""
+        return self.done.is_file() and all(path.is_file() for path in self.policy_files)
+
+    def snippet(self) -> SnippetId:
+        """The snippet from ``clip_info.json``."""
+        info = read_clip_info(self.root)
+        return SnippetId(info["clip_id"], int(info["start_step"]), int(info["end_step"]))
+
+    def require_policy(self) -> None:
+        """Raises :class:`ExpertFilesError` naming the first missing A.1 file."""
+        if not self.root.is_dir():
+            raise ExpertFilesError(f"expert directory {self.root} does not exist")
+        for path in self.policy_files:
+            if not path.is_file():
+                raise ExpertFilesError(
+                    f"expert {self.root.name}: {path.relative_to(self.root)} is missing; an expert directory needs "
+                    "clip_info.json and eval_rsi/model/{best_model.zip,vecnormalize.pkl} (seed A.1). Train it with "
+                    f"`mocap-hierarchy expert train --snippet {self.root.name} --out {self.root.parent}`"
+                )
+
+
+def write_clip_info(root: Path, snippet: SnippetId, clip_length: int) -> None:
+    """Writes ``clip_info.json`` (whole clips get ``end_step`` = clip length)."""
+    end = clip_length if snippet.end is None else snippet.end
+    write_json(ExpertDir(root).clip_info, {"clip_id": snippet.clip_id, "start_step": snippet.start, "end_step": end})
+
+
+def read_clip_info(root: Path) -> dict:
+    """Reads and checks ``clip_info.json``."""
+    path = ExpertDir(Path(root)).clip_info
+    try:
+        info = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise ExpertFilesError(f"{path} is missing (seed A.1 layout)") from None
+    except json.JSONDecodeError as error:
+        raise ExpertFilesError(f"{path} is not valid JSON: {error}") from None
+    missing = [k for k in ("clip_id", "start_step", "end_step") if k not in info]
+    if missing:
+        raise ExpertFilesError(f"{path} lacks {missing}")
+    return info
+
+
+def find_experts(root: str | os.PathLike) -> dict[str, ExpertDir]:
+    """Every expert directory at or below ``root`` (any depth; ``root`` may be one), keyed by snippet id.
+
+    Raises:
+        ExpertFilesError: ``root`` does not exist or holds no expert.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise ExpertFilesError(f"experts directory {root} does not exist")
+    experts = {}
+    for info in sorted(root.rglob("clip_info.json")):
+        expert = ExpertDir(info.parent)
+        experts[str(expert.snippet())] = expert
+    if not experts:
+        raise ExpertFilesError(f"no expert (no clip_info.json) under {root}")
+    return experts
+
+
+def expert_dir_for(out: str | os.PathLike, snippet: str) -> ExpertDir:
+    """The directory an expert for ``snippet`` is trained into."""
+    return ExpertDir(Path(out) / str(parse_snippet_id(snippet)))

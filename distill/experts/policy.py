@@ -1,0 +1,301 @@
+"""A trained expert as a plain, frozen PyTorch module, stored without pickle.
+
+:class:`ExpertPolicy` reproduces stable-baselines3's ``MultiInputPolicy`` as the
+experts are trained (observations normalised by ``VecNormalize`` and clipped,
+concatenated in sorted key order, separate tanh MLPs for the policy and the
+value, a Gaussian with fixed standard deviation), and computes batched actions,
+mean actions, log-probabilities and unnormalised values in one call. It is
+saved as ``expert.json`` + ``expert.safetensors`` (see :mod:`distill.experts.files`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+from safetensors.torch import load_file, save_file
+from torch import nn
+
+from distill.experts.files import EXPERT_FORMAT, EXPERT_FORMAT_VERSION, ExpertDir, ExpertFilesError
+from foundation.atomic import atomic_path, write_json
+from foundation.networks import hidden_stack
+from foundation.sb3 import sb3_policy_layout
+
+
+@dataclass(frozen=True)
+class ExpertSpec:
+    """Everything but the weights (the JSON part of the sidecar).
+
+    Attributes:
+        snippet: Snippet id the expert tracks.
+        observation_sizes: Observation keys (sorted) and their sizes.
+        hidden_layers: Hidden sizes of the policy and value networks.
+        action_size: Number of actions (56).
+        action_std: Standard deviation of the Gaussian policy.
+        residual_actions: Actions are offsets from the reference's next pose.
+        obs_clip: Normalised observations are clipped to +-this.
+        obs_epsilon: Added to the variance before normalising observations.
+        return_variance: Variance of the discounted return (VecNormalize), to unnormalise values.
+        reward_epsilon: Added to ``return_variance``.
+        gamma: Discount the values were trained with.
+        gae_lambda: GAE parameter of training.
+        provenance: Free-form facts about training (steps, evaluation, versions, date).
+    """
+
+    snippet: str
+    observation_sizes: dict[str, int]
+    hidden_layers: tuple[int, ...]
+    action_size: int
+    action_std: float
+    residual_actions: bool
+    obs_clip: float
+    obs_epsilon: float
+    return_variance: float
+    reward_epsilon: float
+    gamma: float
+    gae_lambda: float
+    provenance: dict = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        """JSON-ready dict with the format marker."""
+        return {"format": EXPERT_FORMAT, "version": EXPERT_FORMAT_VERSION, **asdict(self)}
+
+    @classmethod
+    def from_json(cls, data: dict, where: str) -> ExpertSpec:
+        """Parses :meth:`to_json` output, with errors naming the file."""
+        if data.get("format") != EXPERT_FORMAT:
+            raise ExpertFilesError(f"{where} is not a mocap-hierarchy expert description")
+        if data.get("version", 0) > EXPERT_FORMAT_VERSION:
+            raise ExpertFilesError(
+                f"{where} has format version {data['version']}; this library reads up to "
+                f"{EXPERT_FORMAT_VERSION}: upgrade mocap-hierarchy"
+            )
+        fields = {k: v for k, v in data.items() if k not in ("format", "version")}
+        fields["hidden_layers"] = tuple(fields["hidden_layers"])
+        try:
+            return cls(**fields)
+        except TypeError as error:
+            raise ExpertFilesError(f"{where}: {error}") from None
+
+
+@dataclass
+class ExpertOutput:
+    """One batched policy call.
+
+    Attributes:
+        actions: Sampled policy outputs, clipped to [-1, 1] (residuals if the
+            expert is residual), ``(N, 56)``.
+        mean_actions: Mean policy outputs, clipped to [-1, 1].
+        log_probs: Log-density of the unclipped samples under the policy, ``(N,)``.
+        values: Value estimates in reward units (unnormalised), ``(N,)``.
+    """
+
+    actions: np.ndarray
+    mean_actions: np.ndarray
+    log_probs: np.ndarray
+    values: np.ndarray
+
+
+def gaussian_log_prob(sample: np.ndarray, mean: np.ndarray, std: float) -> np.ndarray:
+    """Log-density of ``(N, D)`` samples under independent Gaussians of one standard deviation: ``(N,)``."""
+    return -0.5 * np.sum(((sample - mean) / std) ** 2, axis=1) - mean.shape[1] * (
+        math.log(std) + 0.5 * math.log(2 * math.pi)
+    )
+
+
+class ExpertPolicy(nn.Module):
+    """A frozen snippet expert (see the module docstring).
+
+    Args:
+        spec: Architecture and normaliser description.
+        obs_mean: Per-key observation means.
+        obs_var: Per-key observation variances.
+    """
+
+    def __init__(self, spec: ExpertSpec, obs_mean: dict[str, np.ndarray], obs_var: dict[str, np.ndarray]) -> None:
+        super().__init__()
+        self.spec = spec
+        self.keys = sorted(spec.observation_sizes)
+        size = sum(spec.observation_sizes.values())
+        sizes = [size, *spec.hidden_layers]
+        self.policy_net = hidden_stack(size, spec.hidden_layers, "tanh")
+        self.value_net = hidden_stack(size, spec.hidden_layers, "tanh")
+        self.action = nn.Linear(sizes[-1], spec.action_size)
+        self.value = nn.Linear(sizes[-1], 1)
+        self._mean = {k: np.asarray(obs_mean[k], dtype=np.float64) for k in self.keys}
+        self._var = {k: np.asarray(obs_var[k], dtype=np.float64) for k in self.keys}
+        self._scale = {k: 1.0 / np.sqrt(self._var[k] + spec.obs_epsilon) for k in self.keys}
+        self.eval()
+        self.requires_grad_(False)
+
+    @property
+    def residual_actions(self) -> bool:
+        """Whether actions are offsets from the reference pose."""
+        return self.spec.residual_actions
+
+    @property
+    def gamma(self) -> float:
+        """Discount factor of its training (for the rollouts' advantages)."""
+        return self.spec.gamma
+
+    @property
+    def gae_lambda(self) -> float:
+        """GAE parameter of its training."""
+        return self.spec.gae_lambda
+
+    def features(self, observations: dict[str, np.ndarray]) -> torch.Tensor:
+        """Normalised, clipped, concatenated observations ``(N, D)`` (batched inputs)."""
+        clip = self.spec.obs_clip
+        parts = []
+        for key in self.keys:
+            if key not in observations:
+                raise KeyError(f"expert {self.spec.snippet} needs observation {key!r}")
+            value = np.asarray(observations[key], dtype=np.float64).reshape(-1, self.spec.observation_sizes[key])
+            parts.append(np.clip((value - self._mean[key]) * self._scale[key], -clip, clip))
+        return torch.as_tensor(np.concatenate(parts, axis=1), dtype=torch.float32)
+
+    @torch.no_grad()
+    def mean_actions(self, observations: dict[str, np.ndarray]) -> np.ndarray:
+        """Deterministic actions ``(N, action_size)``, clipped to [-1, 1] (policy network only)."""
+        features = self.features(observations)
+        return np.clip(self.action(self.policy_net(features)).double().numpy(), -1.0, 1.0)
+
+    @torch.no_grad()
+    def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
+        """Samples actions (``rng`` given) or returns the mean, with log-probs and values.
+
+        Args:
+            observations: Batched observations ``{key: (N, size)}``.
+            rng: Source of the Gaussian noise; None gives deterministic actions.
+        """
+        features = self.features(observations)
+        mean = self.action(self.policy_net(features)).double().numpy()
+        value = self.value(self.value_net(features))[:, 0].double().numpy()
+        std = self.spec.action_std
+        sample = mean if rng is None else mean + std * rng.standard_normal(mean.shape)
+        return ExpertOutput(
+            actions=np.clip(sample, -1.0, 1.0),
+            mean_actions=np.clip(mean, -1.0, 1.0),
+            log_probs=gaussian_log_prob(sample, mean, std),
+            values=value * math.sqrt(self.spec.return_variance + self.spec.reward_epsilon),
+        )
+
+    # Files -------------------------------------------------------------------
+
+    def save(self, expert: ExpertDir) -> None:
+        """Writes ``expert.json`` and ``expert.safetensors`` atomically."""
+        tensors = {f"net.{k}": v.detach().contiguous() for k, v in self.state_dict().items()}
+        for key in self.keys:
+            tensors[f"obs_mean.{key}"] = torch.as_tensor(self._mean[key])
+            tensors[f"obs_var.{key}"] = torch.as_tensor(self._var[key])
+        with atomic_path(expert.sidecar_weights) as temporary:
+            save_file(tensors, str(temporary))
+        write_json(expert.sidecar_json, self.spec.to_json())
+
+    @classmethod
+    def load(cls, expert: ExpertDir) -> ExpertPolicy:
+        """Reads the sidecar (no code execution)."""
+        for path in (expert.sidecar_json, expert.sidecar_weights):
+            if not path.is_file():
+                raise ExpertFilesError(
+                    f"expert {expert.root.name} has no {path.name}: it was not trained by mocap-hierarchy. Convert "
+                    "it with `load_expert(..., trust_pickle=True)` (or `--trust-pickle`) if you trust its source"
+                )
+        try:
+            spec = ExpertSpec.from_json(json.loads(expert.sidecar_json.read_text()), str(expert.sidecar_json))
+            tensors = load_file(str(expert.sidecar_weights))
+        except (json.JSONDecodeError, OSError, ValueError) as error:
+            raise ExpertFilesError(f"expert {expert.root.name}: unreadable sidecar ({error})") from None
+        keys = sorted(spec.observation_sizes)
+        policy = cls(
+            spec,
+            {k: tensors[f"obs_mean.{k}"].numpy() for k in keys},
+            {k: tensors[f"obs_var.{k}"].numpy() for k in keys},
+        )
+        policy.load_state_dict({k.removeprefix("net."): v for k, v in tensors.items() if k.startswith("net.")})
+        return policy
+
+
+def policy_from_sb3(model, vecnormalize, spec_fields: dict) -> ExpertPolicy:
+    """Builds an :class:`ExpertPolicy` from a stable-baselines3 PPO and its VecNormalize.
+
+    Args:
+        model: ``stable_baselines3.PPO`` with a ``MultiInputPolicy``.
+        vecnormalize: The ``VecNormalize`` whose statistics the policy was trained with.
+        spec_fields: ``snippet``, ``residual_actions``, ``action_std`` and ``provenance``.
+    """
+    sizes, layers = sb3_policy_layout(model)
+    spec = ExpertSpec(
+        snippet=spec_fields["snippet"],
+        observation_sizes=dict(sorted(sizes.items())),
+        hidden_layers=layers,
+        action_size=int(model.action_space.shape[0]),
+        action_std=float(spec_fields["action_std"]),
+        residual_actions=bool(spec_fields["residual_actions"]),
+        obs_clip=float(vecnormalize.clip_obs),
+        obs_epsilon=float(vecnormalize.epsilon),
+        return_variance=float(vecnormalize.ret_rms.var),
+        reward_epsilon=float(vecnormalize.epsilon),
+        gamma=float(model.gamma),
+        gae_lambda=float(model.gae_lambda),
+        provenance=spec_fields.get("provenance", {}),
+    )
+    means = {k: vecnormalize.obs_rms[k].mean for k in sizes}
+    variances = {k: vecnormalize.obs_rms[k].var for k in sizes}
+    policy = ExpertPolicy(spec, means, variances)
+    source = model.policy.state_dict()
+    mapping = {
+        "policy_net": "mlp_extractor.policy_net",
+        "value_net": "mlp_extractor.value_net",
+        "action": "action_net",
+        "value": "value_net",
+    }
+    state = {}
+    for name in policy.state_dict():
+        prefix, rest = name.split(".", 1)
+        state[name] = source[f"{mapping[prefix]}.{rest}"].detach().cpu().float()
+    policy.load_state_dict(state)
+    return policy
+
+
+def load_expert(root: str | Path, trust_pickle: bool = False) -> ExpertPolicy:
+    """Loads an expert directory as an :class:`ExpertPolicy`.
+
+    Args:
+        root: The expert directory (seed A.1 layout).
+        trust_pickle: Allow converting an expert without our sidecar from its
+            stable-baselines3 pickles (this executes code from those files).
+            The conversion is written as a sidecar for next time.
+
+    Raises:
+        ExpertFilesError: Missing files, or pickles needed but not trusted.
+    """
+    expert = ExpertDir(Path(root))
+    expert.require_policy()
+    if expert.sidecar_json.is_file() or not trust_pickle:
+        return ExpertPolicy.load(expert)
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    model = PPO.load(expert.best_model, device="cpu")
+    with expert.vecnormalize.open("rb") as f:
+        import pickle
+
+        vecnormalize: VecNormalize = pickle.load(f)  # the caller trusts this file
+    std = float(np.exp(model.policy.log_std.detach().cpu().numpy()).mean())
+    policy = policy_from_sb3(
+        model,
+        vecnormalize,
+        {
+            "snippet": str(expert.snippet()),
+            "residual_actions": False,
+            "action_std": std,
+            "provenance": {"converted_from": "stable-baselines3 pickles"},
+        },
+    )
+    policy.save(expert)
+    return policy

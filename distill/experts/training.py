@@ -1,0 +1,397 @@
+"""Training one snippet expert with stable-baselines3 PPO (seed B.1.2).
+
+``train_expert`` writes the seed's A.1 directory (see :mod:`distill.experts.files`):
+the best model by normalised evaluation reward is kept in ``eval_rsi/model``,
+a resumable checkpoint is written every ``checkpoint_every`` steps, and an
+interrupted run continues from its last checkpoint when started again with
+the same settings. ``done.json`` marks a finished expert, which reruns skip.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+import shutil
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import torch
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import configure
+from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+from tqdm.auto import tqdm
+
+from distill.experts.config import ExpertConfig, PiecewiseLearningRate, expert_config_from_json
+from distill.experts.evaluation import EvaluationConfig, evaluate_policy
+from distill.experts.fanout import Job
+from distill.experts.files import ExpertDir, expert_dir_for, write_clip_info
+from distill.experts.policy import policy_from_sb3
+from foundation.atomic import write_json
+from foundation.provenance import provenance
+from foundation.sb3 import save_sb3
+from tasks.clips.format import list_clips
+from tasks.clips.snippets import parse_snippet_id
+from tasks.clips.sources import resolve_clip_file
+from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
+from tasks.walker import build_walker
+
+EXPERT_OBSERVABLES = "expert"
+_SB3_SAVE_EXCLUDE = ["learning_rate", "lr_schedule"]  # our schedule class stays out of SB3's pickles
+
+
+class ConfigMismatchError(ValueError):
+    """A checkpoint exists for different training settings."""
+
+
+@dataclass
+class TrainingResult:
+    """What ``train_expert`` did.
+
+    Attributes:
+        snippet: The snippet id.
+        directory: The expert directory.
+        steps: Environment steps trained in total.
+        best: The best evaluation (normalised reward/length) or None.
+        stop_reason: ``budget``, ``early_stop`` or ``already_done``.
+        seconds: Wall time of this call.
+    """
+
+    snippet: str
+    directory: str
+    steps: int
+    best: dict | None
+    stop_reason: str
+    seconds: float
+
+
+def _make_env(tracking: TrackingConfig, seed: int) -> ClipTrackingEnv:
+    env = ClipTrackingEnv(tracking)
+    env.reset(seed=seed)
+    return env
+
+
+def _tracking_config(snippet: str, clips: str, config: ExpertConfig) -> TrackingConfig:
+    return TrackingConfig(
+        snippets=(snippet,),
+        clips=clips,
+        ref_steps=(0,),
+        observables=EXPERT_OBSERVABLES,
+        init="random",
+        min_steps=config.train_min_steps,
+        termination_threshold=config.termination_threshold,
+        residual_actions=config.residual_actions,
+    )
+
+
+def _training_fields(config: ExpertConfig) -> dict:
+    """Settings that must match to resume (not the budget or the machine)."""
+    ignore = {"total_steps", "n_envs", "subprocess_envs", "torch_threads", "device", "eval_at_start"}
+    return {k: v for k, v in asdict(config).items() if k not in ignore}
+
+
+def keep_training(state: dict, length: float, reward: float, steps: int, config: ExpertConfig) -> bool:
+    """The seed's early-stopping rule (B.1.2); updates ``state`` and returns False to stop.
+
+    Once the normalised episode length reaches ``early_stop_length``, training
+    stops when the normalised reward has not improved by more than
+    ``early_stop_improvement`` (relative) for ``early_stop_patience`` steps.
+    Falling below the length threshold restarts the count.
+    """
+    if length < config.early_stop_length:
+        state["plateau_reward"], state["plateau_since"] = None, None
+        return True
+    plateau = state["plateau_reward"]
+    if plateau is None or reward > plateau * (1.0 + config.early_stop_improvement):
+        state["plateau_reward"], state["plateau_since"] = reward, int(steps)
+        return True
+    return steps - state["plateau_since"] < config.early_stop_patience
+
+
+class _ExpertCallback(BaseCallback):
+    """Evaluation, best-model saving, checkpoints, early stopping and a progress bar."""
+
+    def __init__(self, trainer: _Trainer, state: dict) -> None:
+        super().__init__()
+        self.trainer = trainer
+        self.state = state
+        self.bar: tqdm | None = None
+        self.stop_reason = "budget"
+
+    def _on_training_start(self) -> None:
+        model = self.model
+        assert isinstance(model, PPO)
+        if self.trainer.config.eval_at_start and not self.state["evaluations"]:
+            self.trainer.evaluate(model, 0, self.state)
+        self.bar = tqdm(
+            total=self.trainer.config.total_steps,
+            initial=self.num_timesteps,
+            desc=f"expert {self.trainer.snippet}",
+            unit="step",
+            disable=not self.trainer.progress,
+        )
+
+    def _on_step(self) -> bool:
+        for info in self.locals["infos"]:
+            if "normalized_episode_length" in info:
+                self.state["recent"].append((info["normalized_episode_reward"], info["normalized_episode_length"]))
+        config = self.trainer.config
+        continue_training = True
+        model = self.model
+        assert isinstance(model, PPO)
+        if self.num_timesteps >= self.state["next_eval"]:
+            self.state["next_eval"] += config.eval_every
+            continue_training = self.trainer.evaluate(model, self.num_timesteps, self.state)
+            if not continue_training:
+                self.stop_reason = "early_stop"
+        if self.num_timesteps >= self.state["next_checkpoint"]:
+            self.state["next_checkpoint"] += config.checkpoint_every
+            self.trainer.checkpoint(model, self.state)
+        return continue_training
+
+    def _on_rollout_end(self) -> None:
+        recent = self.state["recent"]
+        if recent and self.bar is not None:
+            rewards, lengths = zip(*recent[-100:], strict=True)
+            self.bar.set_postfix(norm_len=f"{np.mean(lengths):.2f}", norm_rew=f"{np.mean(rewards):.2f}")
+            self.logger.record("rollout/normalized_episode_length", float(np.mean(lengths)))
+            self.logger.record("rollout/normalized_episode_reward", float(np.mean(rewards)))
+            del recent[:-100]
+        if self.bar is not None:
+            self.bar.update(self.num_timesteps - self.bar.n)
+
+    def _on_training_end(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+class _Trainer:
+    """State shared by ``train_expert`` and its callback."""
+
+    def __init__(self, snippet: str, expert: ExpertDir, clips: str, config: ExpertConfig, progress: bool) -> None:
+        self.snippet = snippet
+        self.expert = expert
+        self.clips = clips
+        self.config = config
+        self.progress = progress
+        self.walker = build_walker()
+
+    def _policy(self, model: PPO, venv: VecNormalize, steps: int):
+        return policy_from_sb3(
+            model,
+            venv,
+            {
+                "snippet": self.snippet,
+                "residual_actions": self.config.residual_actions,
+                "action_std": self.config.action_std,
+                "provenance": provenance(trained_steps=int(steps), clips=str(self.clips)),
+            },
+        )
+
+    def evaluate(self, model: PPO, steps: int, state: dict) -> bool:
+        """Evaluates, keeps the best model, decides early stopping (False = stop)."""
+        config = self.config
+        venv = model.get_vec_normalize_env()
+        assert isinstance(venv, VecNormalize)
+        policy = self._policy(model, venv, steps)
+        evaluation = evaluate_policy(
+            policy,
+            self.snippet,
+            EvaluationConfig(
+                episodes=config.eval_episodes,
+                init="random",
+                min_steps=config.eval_min_steps,
+                action_noise=config.eval_action_noise,
+                termination_threshold=config.termination_threshold,
+                seed=config.seed,
+            ),
+            clips=self.clips,
+            walker=self.walker,
+        )
+        record = {
+            "steps": int(steps),
+            "normalized_reward": evaluation.normalized_reward,
+            "normalized_length": evaluation.normalized_length,
+            "episode_return": evaluation.episode_return,
+            "episode_length": evaluation.episode_length,
+        }
+        state["evaluations"].append(record)
+        write_json(self.expert.evaluations, state["evaluations"])
+        model.logger.record("eval/normalized_episode_reward", evaluation.normalized_reward)
+        model.logger.record("eval/normalized_episode_length", evaluation.normalized_length)
+        if state["best"] is None or evaluation.normalized_reward > state["best"]["normalized_reward"]:
+            state["best"] = record
+            self._save_best(model, venv, policy)
+        return keep_training(state, evaluation.normalized_length, evaluation.normalized_reward, steps, config)
+
+    def _save_best(self, model: PPO, venv: VecNormalize, policy) -> None:
+        save_sb3(model, venv, self.expert.best_model, self.expert.vecnormalize, _SB3_SAVE_EXCLUDE)
+        policy.save(self.expert)
+
+    def checkpoint(self, model: PPO, state: dict) -> None:
+        """Writes a resumable checkpoint (model, normaliser, callback state)."""
+        expert = self.expert
+        venv = model.get_vec_normalize_env()
+        assert venv is not None
+        save_sb3(model, venv, expert.checkpoint_model, expert.checkpoint_normaliser, _SB3_SAVE_EXCLUDE)
+        saved = {k: v for k, v in state.items() if k != "recent"}
+        write_json(expert.checkpoint_state, {**saved, "steps": int(model.num_timesteps)})
+
+
+def train_expert(
+    snippet: str,
+    out: str | Path,
+    config: ExpertConfig | None = None,
+    clips: str | None = None,
+    progress: bool = True,
+) -> TrainingResult:
+    """Trains (or resumes, or skips) the expert of one snippet.
+
+    Args:
+        snippet: Snippet id (``CLIP-START-END``) or a whole clip id.
+        out: Folder that receives the ``<snippet>/`` expert directory.
+        config: Training settings (seed defaults).
+        clips: Clip file (None: resolved from the snippet id).
+        progress: Show a progress bar.
+
+    Returns:
+        A :class:`TrainingResult`.
+
+    Raises:
+        ConfigMismatchError: A checkpoint from different settings exists.
+    """
+    started = time.perf_counter()
+    config = config or ExpertConfig()
+    config.validate()
+    snippet_id = parse_snippet_id(snippet)
+    clip_file = str(resolve_clip_file(clips, [snippet_id.clip_id]))
+    expert = expert_dir_for(out, snippet)
+    name = str(snippet_id)
+    if expert.is_done():
+        summary = json.loads(expert.done.read_text())
+        return TrainingResult(name, str(expert.root), summary["steps"], summary["best"], "already_done", 0.0)
+
+    expert.root.mkdir(parents=True, exist_ok=True)
+    lengths = list_clips(clip_file)
+    if snippet_id.clip_id not in lengths:
+        raise KeyError(f"clip {snippet_id.clip_id} is not in {clip_file}")
+    resume_state = _check_resume(expert, config)
+    write_clip_info(expert.root, snippet_id, lengths[snippet_id.clip_id])
+    write_json(expert.config, asdict(config))
+
+    if config.torch_threads > 0:
+        torch.set_num_threads(config.torch_threads)
+    tracking = _tracking_config(name, clip_file, config)
+    n_envs = config.resolved_envs()
+    factories: list[Callable[[], gym.Env]] = [
+        functools.partial(_make_env, tracking, config.seed * 1000 + i) for i in range(n_envs)
+    ]
+    vec_env = SubprocVecEnv(factories) if config.subprocess_envs and n_envs > 1 else DummyVecEnv(factories)
+    schedule = PiecewiseLearningRate(config.learning_rates)
+    if resume_state is not None:
+        venv = VecNormalize.load(str(expert.checkpoint_normaliser), vec_env)
+        venv.training = True
+        model = PPO.load(expert.checkpoint_model, env=venv, device=config.device, learning_rate=schedule)
+        state = resume_state
+    else:
+        venv = VecNormalize(vec_env, norm_obs=True, norm_reward=True, gamma=config.gamma)
+        model = PPO(
+            "MultiInputPolicy",
+            venv,
+            learning_rate=schedule,
+            n_steps=config.steps_per_update // n_envs,
+            batch_size=config.minibatch_size,
+            n_epochs=config.epochs,
+            gamma=config.gamma,
+            gae_lambda=config.gae_lambda,
+            clip_range=config.clip_range,
+            max_grad_norm=config.max_grad_norm,
+            policy_kwargs={
+                "net_arch": {"pi": list(config.hidden_layers), "vf": list(config.hidden_layers)},
+                "activation_fn": torch.nn.Tanh,
+                "log_std_init": math.log(config.action_std),
+            },
+            seed=config.seed,
+            device=config.device,
+        )
+        state = {
+            "evaluations": [],
+            "best": None,
+            "plateau_reward": None,
+            "plateau_since": None,
+            "next_eval": config.eval_every,
+            "next_checkpoint": config.checkpoint_every,
+        }
+    state["recent"] = []
+    model.policy.log_std.requires_grad_(False)  # the experts' action noise is fixed (MoCapAct)
+    model.set_logger(configure(str(expert.root), ["csv"]))
+
+    trainer = _Trainer(name, expert, clip_file, config, progress)
+    callback = _ExpertCallback(trainer, state)
+    remaining = config.total_steps - model.num_timesteps
+    try:
+        if remaining > 0:
+            model.learn(remaining, callback=callback, reset_num_timesteps=resume_state is None)
+        if not state["evaluations"] or state["evaluations"][-1]["steps"] != model.num_timesteps:
+            trainer.evaluate(model, model.num_timesteps, state)  # every expert ends evaluated
+    finally:
+        vec_env.close()
+    summary = {
+        "snippet": name,
+        "steps": int(model.num_timesteps),
+        "best": state["best"],
+        "stop_reason": callback.stop_reason,
+        "config": asdict(config),
+    }
+    write_json(expert.done, summary)
+    _remove_checkpoint(expert)
+    return TrainingResult(
+        name, str(expert.root), summary["steps"], state["best"], callback.stop_reason, time.perf_counter() - started
+    )
+
+
+def _check_resume(expert: ExpertDir, config: ExpertConfig) -> dict | None:
+    """The saved callback state if a compatible checkpoint exists."""
+    state_file = expert.checkpoint_state
+    if not state_file.is_file():
+        return None
+    if expert.config.is_file():
+        saved = _training_fields(expert_config_from_json(json.loads(expert.config.read_text())))
+        requested = _training_fields(config)
+        differences = {k: (v, requested[k]) for k, v in saved.items() if requested[k] != v}
+        if differences:
+            raise ConfigMismatchError(
+                f"{expert.root} holds a checkpoint trained with other settings {differences} (saved, requested); "
+                "resume with the same settings, use another --out, or delete the checkpoint folder"
+            )
+    return json.loads(state_file.read_text())
+
+
+def _remove_checkpoint(expert: ExpertDir) -> None:
+    shutil.rmtree(expert.checkpoint_dir, ignore_errors=True)
+
+
+def expert_jobs(snippets: list[str], out: str | Path, config: ExpertConfig, clips: str | None = None) -> list[Job]:
+    """One fan-out job per snippet (see :func:`distill.experts.fanout.run_jobs`), finished experts marked done.
+
+    Each job is one process with one environment and one torch thread, so a
+    pool of one worker per core does not oversubscribe the machine.
+    """
+    for snippet in snippets:
+        parse_snippet_id(snippet)
+    config = dataclasses.replace(config, n_envs=1, subprocess_envs=False, torch_threads=1)
+    return [
+        Job(
+            name=snippet,
+            function=train_expert,
+            kwargs={"snippet": snippet, "out": out, "config": config, "clips": clips, "progress": False},
+            done=expert_dir_for(out, snippet).is_done(),
+        )
+        for snippet in snippets
+    ]

@@ -1,0 +1,455 @@
+"""The motion GPT (seed B.4): a causal transformer from humanoid states to the experts' mean actions.
+
+Inputs are continuous: each step's standardised GPT observation (joint
+positions and velocities, velocimeter, gyro, end effectors, world z axis,
+actuator activation, touch, torque, body height; no reference) is projected to
+the embedding size; the output at every position is that step's action,
+trained with mean-squared error against the experts' mean actions.
+
+Architecture (Table 4 defaults): 8 pre-norm blocks of 8-head self-attention
+and a 4x GELU MLP, embedding 768, dropout 0.1 on embedding, attention and
+residual paths, context (block) of 32 steps; about 57M parameters with the
+seed's 206 observation values.
+
+**Positions and the context window.** Positions are rotary (RoPE): attention
+scores depend only on how many steps apart two states are. Every layer lets a
+step attend to itself and the ``block_size - 1`` steps before it (a sliding
+window). On training windows of ``block_size`` steps this is exactly a causal
+GPT. Rolled out, it is what makes an exact key/value cache possible: a step's
+keys and values never change once computed, so each new step costs one token
+(:meth:`MotionGpt.step` with a :class:`KvCache`), and the cached actions equal
+a from-scratch evaluation of the same function over the history
+(:meth:`MotionGpt.predict` on the last :attr:`MotionGpt.receptive_field` steps).
+MoCapAct instead recomputes only the last 32 steps at every step; that is a
+different function once an episode is longer than the context (the lower
+layers then see less history), available as ``context="window"`` in
+:mod:`distill.gpt.completion` for comparison.
+
+The file format (one ``.safetensors`` file with JSON, defined only here):
+tensors ``net.*`` plus ``observation_mean`` / ``observation_std``; the JSON
+holds :class:`GptSpec` (config, ordered observation keys and sizes, action
+size, provenance). Loading runs no pickled code.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, cast
+
+import numpy as np
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from foundation.described_file import read_described, write_described
+from tasks.observables import OBSERVABLE_SETS
+
+GPT_FORMAT = "mocap_hierarchy.motion_gpt"
+GPT_SCHEMA_VERSION = 1
+
+
+class GptFileError(ValueError):
+    """A GPT file is unreadable, of another format, or its weights do not fit its architecture."""
+
+
+@dataclass(frozen=True)
+class GptConfig:
+    """The GPT's architecture (seed Table 4).
+
+    Attributes:
+        layers: Transformer blocks.
+        heads: Attention heads per block.
+        embedding_size: Width of the residual stream.
+        block_size: Context: steps each layer attends to (including the current one).
+        embedding_dropout: Dropout on the input embedding.
+        attention_dropout: Dropout on the attention weights.
+        residual_dropout: Dropout on each block's residual branches.
+        rope_base: Base of the rotary position frequencies.
+        observables: The state observables, in input order (seed B.4).
+    """
+
+    layers: int = 8
+    heads: int = 8
+    embedding_size: int = 768
+    block_size: int = 32
+    embedding_dropout: float = 0.1
+    attention_dropout: float = 0.1
+    residual_dropout: float = 0.1
+    rope_base: float = 10_000.0
+    observables: tuple[str, ...] = OBSERVABLE_SETS["gpt"]
+
+    def __post_init__(self) -> None:
+        if self.embedding_size % self.heads:
+            raise ValueError(f"embedding_size {self.embedding_size} is not divisible by heads {self.heads}")
+        if (self.embedding_size // self.heads) % 2:
+            raise ValueError("rotary positions need an even head size (embedding_size / heads)")
+        if self.layers < 1 or self.block_size < 1:
+            raise ValueError("layers and block_size must be at least 1")
+        for name in ("embedding_dropout", "attention_dropout", "residual_dropout"):
+            if not 0.0 <= getattr(self, name) < 1.0:
+                raise ValueError(f"{name} must be in [0, 1)")
+
+
+@dataclass(frozen=True)
+class GptSpec:
+    """A trained GPT's architecture and inputs (the JSON part of its file).
+
+    Attributes:
+        config: The :class:`GptConfig` as a dict.
+        observation_sizes: State observation keys and sizes, in input order.
+        action_size: Number of actions.
+        provenance: Dataset, steps, date, library version.
+    """
+
+    config: dict[str, Any]
+    observation_sizes: dict[str, int]
+    action_size: int = 56
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def gpt(self) -> GptConfig:
+        """The config as a dataclass."""
+        return GptConfig(**{**self.config, "observables": tuple(self.config["observables"])})
+
+    @property
+    def observation_size(self) -> int:
+        """Width of the flat state vector."""
+        return sum(self.observation_sizes.values())
+
+
+# Rotary positions ---------------------------------------------------------------------
+
+
+def rotary_tables(positions: torch.Tensor, head_size: int, base: float) -> tuple[torch.Tensor, torch.Tensor]:
+    """``cos`` and ``sin`` of the rotation angles, ``positions.shape + (head_size / 2,)`` (computed in float64)."""
+    frequencies = base ** (-torch.arange(0, head_size, 2, dtype=torch.float64, device=positions.device) / head_size)
+    angles = positions.to(torch.float64)[..., None] * frequencies
+    return angles.cos(), angles.sin()
+
+
+def rotate(x: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.Tensor:
+    """Rotates pairs ``(x_i, x_{i + d/2})`` of the last axis by the tabled angles."""
+    half = x.shape[-1] // 2
+    first, second = x[..., :half], x[..., half:]
+    cos, sin = cos.to(x.dtype), sin.to(x.dtype)
+    return torch.cat([first * cos - second * sin, first * sin + second * cos], dim=-1)
+
+
+# The network ------------------------------------------------------------------------------
+
+
+@dataclass
+class KvCache:
+    """Keys and values of the last ``block_size`` steps of ``rows`` independent rollouts.
+
+    A ring buffer per layer: step ``p`` of a row lives in slot ``p % block_size``.
+    Keys are stored rotated to their absolute step, so attention needs no
+    reordering. Make one with :meth:`MotionGpt.new_cache`.
+
+    Attributes:
+        keys: Per layer ``(rows, heads, block_size, head_size)``.
+        values: Per layer, same shape.
+        slot_steps: ``(rows, block_size)`` step held by each slot (-1: empty).
+        steps: ``(rows,)`` the next step of each row (0 after a reset).
+    """
+
+    keys: list[torch.Tensor]
+    values: list[torch.Tensor]
+    slot_steps: torch.Tensor
+    steps: torch.Tensor
+
+    def reset(self, rows: np.ndarray | list[int] | None = None) -> None:
+        """Forgets the history of ``rows`` (all when None): their next step is step 0."""
+        index = slice(None) if rows is None else torch.as_tensor(np.asarray(rows, dtype=np.int64))
+        self.slot_steps[index] = -1
+        self.steps[index] = 0
+
+
+class _Attention(nn.Module):
+    def __init__(self, config: GptConfig) -> None:
+        super().__init__()
+        self.heads = config.heads
+        self.head_size = config.embedding_size // config.heads
+        self.qkv = nn.Linear(config.embedding_size, 3 * config.embedding_size)
+        self.proj = nn.Linear(config.embedding_size, config.embedding_size)
+        self.attention_dropout = config.attention_dropout
+        self.residual_dropout = nn.Dropout(config.residual_dropout)
+
+    def _split(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        *lead, _ = x.shape
+        q, k, v = self.qkv(x).view(*lead, 3, self.heads, self.head_size).unbind(-3)
+        return q, k, v
+
+    def forward(self, x: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor, mask: torch.Tensor | None) -> torch.Tensor:
+        """Sequence form: ``x`` ``(B, T, C)``; ``mask`` None means plain causal."""
+        size, steps, width = x.shape
+        q, k, v = (t.transpose(1, 2) for t in self._split(x))  # (B, H, T, d)
+        q, k = rotate(q, cos, sin), rotate(k, cos, sin)
+        dropout = self.attention_dropout if self.training else 0.0
+        if mask is None:
+            y = F.scaled_dot_product_attention(q, k, v, dropout_p=dropout, is_causal=True)
+        else:
+            y = F.scaled_dot_product_attention(q, k, v, attn_mask=mask, dropout_p=dropout)
+        return self.residual_dropout(self.proj(y.transpose(1, 2).reshape(size, steps, width)))
+
+    def step(
+        self,
+        x: torch.Tensor,
+        cos: torch.Tensor,
+        sin: torch.Tensor,
+        keys: torch.Tensor,
+        values: torch.Tensor,
+        rows: torch.Tensor,
+        slots: torch.Tensor,
+        valid: torch.Tensor,
+    ) -> torch.Tensor:
+        """One new step per row: ``x`` ``(N, C)``; writes its key/value into the cache first."""
+        q, k, v = self._split(x)  # (N, H, d)
+        q, k = rotate(q, cos[:, None], sin[:, None]), rotate(k, cos[:, None], sin[:, None])
+        keys[rows, :, slots] = k
+        values[rows, :, slots] = v
+        row_keys, row_values = keys[rows], values[rows]  # (N, H, W, d)
+        scores = (q[:, :, None, :] @ row_keys.transpose(-1, -2)) / math.sqrt(self.head_size)  # (N, H, 1, W)
+        scores = scores.masked_fill(~valid[:, None, None, :], float("-inf"))
+        y = (scores.softmax(-1) @ row_values)[:, :, 0]  # (N, H, d)
+        return self.proj(y.reshape(len(x), -1))
+
+
+class _Block(nn.Module):
+    def __init__(self, config: GptConfig) -> None:
+        super().__init__()
+        self.norm1 = nn.LayerNorm(config.embedding_size)
+        self.attention = _Attention(config)
+        self.norm2 = nn.LayerNorm(config.embedding_size)
+        self.mlp = nn.Sequential(
+            nn.Linear(config.embedding_size, 4 * config.embedding_size),
+            nn.GELU(),
+            nn.Linear(4 * config.embedding_size, config.embedding_size),
+            nn.Dropout(config.residual_dropout),
+        )
+
+    def output_projections(self) -> list[nn.Linear]:
+        """The linear layers that write into the residual stream."""
+        return [self.attention.proj, cast(nn.Linear, self.mlp[2])]
+
+    def forward(self, x: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor, mask: torch.Tensor | None):
+        x = x + self.attention(self.norm1(x), cos, sin, mask)
+        return x + self.mlp(self.norm2(x))
+
+
+class MotionGpt(nn.Module):
+    """The GPT (see the module docstring).
+
+    Args:
+        spec: Architecture and inputs.
+        observation_mean: Per-value mean of the flat state (dataset statistics).
+        observation_std: Per-value standard deviation of the flat state.
+    """
+
+    observation_mean: torch.Tensor
+    observation_std: torch.Tensor
+
+    def __init__(
+        self, spec: GptSpec, observation_mean: np.ndarray | torch.Tensor, observation_std: np.ndarray | torch.Tensor
+    ) -> None:
+        super().__init__()
+        self.spec = spec
+        config = self.config = spec.gpt
+        self.head_size = config.embedding_size // config.heads
+        self.embed = nn.Linear(spec.observation_size, config.embedding_size)
+        self.embedding_dropout = nn.Dropout(config.embedding_dropout)
+        self.blocks = nn.ModuleList(_Block(config) for _ in range(config.layers))
+        self.norm = nn.LayerNorm(config.embedding_size)
+        self.head = nn.Linear(config.embedding_size, spec.action_size)
+        for name, value in (("observation_mean", observation_mean), ("observation_std", observation_std)):
+            tensor = torch.as_tensor(np.asarray(value), dtype=torch.float32).reshape(-1)
+            if len(tensor) != spec.observation_size:
+                raise ValueError(f"{name} has {len(tensor)} values; the observables need {spec.observation_size}")
+            self.register_buffer(name, tensor)
+        self.apply(_initialise)
+        for block in self._block_list():  # GPT-2's scaled initialisation of the residual projections
+            for projection in block.output_projections():
+                nn.init.normal_(projection.weight, std=0.02 / math.sqrt(2 * config.layers))
+
+    def _block_list(self) -> list[_Block]:
+        return [cast(_Block, block) for block in self.blocks]
+
+    @property
+    def receptive_field(self) -> int:
+        """Steps of history an output depends on: ``layers * (block_size - 1) + 1``."""
+        return self.config.layers * (self.config.block_size - 1) + 1
+
+    def parameter_count(self) -> int:
+        """Trainable parameters."""
+        return sum(p.numel() for p in self.parameters())
+
+    def optimizer_groups(self, weight_decay: float) -> list[dict[str, Any]]:
+        """AdamW groups: weight decay on the linear layers' weights only (not biases or norms)."""
+        decayed = [m.weight for m in self.modules() if isinstance(m, nn.Linear)]
+        ids = {id(p) for p in decayed}
+        rest = [p for p in self.parameters() if id(p) not in ids]
+        return [{"params": decayed, "weight_decay": weight_decay}, {"params": rest, "weight_decay": 0.0}]
+
+    # Sequences ------------------------------------------------------------------------
+
+    def sequence(self, states: torch.Tensor, first_step: int | torch.Tensor = 0) -> torch.Tensor:
+        """Actions at every position of normalised state sequences.
+
+        Args:
+            states: ``(B, T, D)`` standardised states, oldest first.
+            first_step: Episode step of ``states[:, 0]`` (rotary positions are
+                relative, so this only matters for bit-level agreement with a cache).
+
+        Returns:
+            ``(B, T, action_size)`` unclipped action means.
+        """
+        steps = states.shape[1]
+        positions = torch.arange(steps, device=states.device) + torch.as_tensor(first_step, device=states.device)
+        cos, sin = rotary_tables(positions, self.head_size, self.config.rope_base)
+        mask = None
+        if steps > self.config.block_size:
+            offset = positions[:, None] - positions[None, :]
+            mask = (offset >= 0) & (offset < self.config.block_size)
+        x = self.embedding_dropout(self.embed(states))
+        for block in self.blocks:
+            x = block(x, cos, sin, mask)
+        return self.head(self.norm(x))
+
+    def forward(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+        """Weighted mean-squared error on a batch of windows (the trainer's loss).
+
+        Args:
+            batch: ``states`` ``(B, T, D)`` standardised, ``actions`` ``(B, T, A)``
+                targets, ``weights`` ``(B, T)``.
+        """
+        predicted = self.sequence(batch["states"])
+        squared = (predicted - batch["actions"]) ** 2
+        loss = (batch["weights"][..., None] * squared).mean()
+        return loss, {"mse": squared.detach().mean()}
+
+    def normalise(self, states: np.ndarray | torch.Tensor) -> torch.Tensor:
+        """Raw flat states to standardised float32 tensors on the model's device."""
+        tensor = torch.as_tensor(states, dtype=torch.float32, device=self.observation_mean.device)
+        if tensor.shape[-1] != self.spec.observation_size:
+            observables = ", ".join(self.spec.observation_sizes)
+            raise ValueError(
+                f"states have {tensor.shape[-1]} values per step; this GPT reads {self.spec.observation_size} "
+                f"({observables})"
+            )
+        return (tensor - self.observation_mean) / self.observation_std
+
+    @torch.no_grad()
+    def predict(self, states: np.ndarray | torch.Tensor, first_step: int = 0) -> np.ndarray:
+        """Action of the last step of raw state histories, recomputed from scratch (no cache).
+
+        Args:
+            states: ``(N, T, D)`` raw flat states of ``N`` rollouts, the last
+                ``T`` steps of each (all of an episode, or at least
+                :attr:`receptive_field` steps for the exact function).
+            first_step: Episode step of ``states[:, 0]``.
+
+        Returns:
+            ``(N, action_size)`` actions clipped to [-1, 1].
+        """
+        out = self.sequence(self.normalise(states), first_step)[:, -1]
+        return out.clamp(-1.0, 1.0).double().cpu().numpy()
+
+    # Incremental roll-out ---------------------------------------------------------------
+
+    def new_cache(self, rows: int) -> KvCache:
+        """An empty key/value cache for ``rows`` rollouts."""
+        device = self.observation_mean.device
+        shape = (rows, self.config.heads, self.config.block_size, self.head_size)
+        return KvCache(
+            keys=[torch.zeros(shape, device=device) for _ in self.blocks],
+            values=[torch.zeros(shape, device=device) for _ in self.blocks],
+            slot_steps=torch.full((rows, self.config.block_size), -1, dtype=torch.int64, device=device),
+            steps=torch.zeros(rows, dtype=torch.int64, device=device),
+        )
+
+    @torch.no_grad()
+    def step(self, states: np.ndarray | torch.Tensor, cache: KvCache, rows: np.ndarray | None = None) -> np.ndarray:
+        """Appends one raw state per row to its history and returns the action for it.
+
+        Costs one token per row and layer: earlier steps' keys and values come
+        from the cache. The result equals :meth:`predict` on the row's history.
+
+        Args:
+            states: ``(N, D)`` raw flat states.
+            cache: The rollouts' cache (see :meth:`new_cache`, :meth:`KvCache.reset`).
+            rows: Which cache rows the states belong to (default ``0..N-1``).
+
+        Returns:
+            ``(N, action_size)`` actions clipped to [-1, 1].
+        """
+        if self.training:
+            raise RuntimeError("call .eval() before rolling the GPT out (dropout would make actions random)")
+        x = self.normalise(states)
+        if x.ndim != 2:
+            raise ValueError(f"states must be (N, {self.spec.observation_size}), got {tuple(x.shape)}")
+        device = x.device
+        index = torch.arange(len(x), device=device) if rows is None else torch.as_tensor(rows, device=device)
+        steps = cache.steps[index]
+        slots = steps % self.config.block_size
+        cache.slot_steps[index, slots] = steps
+        valid = cache.slot_steps[index] >= 0
+        cos, sin = rotary_tables(steps, self.head_size, self.config.rope_base)
+        x = self.embed(x)
+        for block, keys, values in zip(self._block_list(), cache.keys, cache.values, strict=True):
+            x = x + block.attention.step(block.norm1(x), cos, sin, keys, values, index, slots, valid)
+            x = x + block.mlp(block.norm2(x))
+        cache.steps[index] = steps + 1
+        return self.head(self.norm(x)).clamp(-1.0, 1.0).double().cpu().numpy()
+
+    # Files -----------------------------------------------------------------------------
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Writes weights, normaliser and :class:`GptSpec` atomically (safetensors + JSON)."""
+        tensors = {f"net.{k}": v for k, v in self.state_dict().items() if not k.startswith("observation_")}
+        tensors["observation_mean"] = self.observation_mean
+        tensors["observation_std"] = self.observation_std
+        return write_described(path, tensors, GPT_FORMAT, GPT_SCHEMA_VERSION, asdict(self.spec))
+
+
+def _initialise(module: nn.Module) -> None:
+    if isinstance(module, nn.Linear):
+        nn.init.normal_(module.weight, std=0.02)
+        nn.init.zeros_(module.bias)
+
+
+def load_gpt(path: str | os.PathLike) -> MotionGpt:
+    """Reads a file written by :meth:`MotionGpt.save` (no pickle); the model is in eval mode.
+
+    Raises:
+        FileNotFoundError: No such file.
+        GptFileError: Another format, a newer schema, corrupt content, or weights
+            that do not fit the architecture the file describes.
+    """
+    description, tensors = read_described(
+        path,
+        GPT_FORMAT,
+        GPT_SCHEMA_VERSION,
+        "motion GPT",
+        GptFileError,
+        missing_hint=" (`mocap-hierarchy gpt train` writes it)",
+    )
+    try:
+        spec = GptSpec(**description)
+        model = MotionGpt(spec, tensors["observation_mean"], tensors["observation_std"])
+    except (TypeError, KeyError, ValueError) as error:
+        raise GptFileError(f"{path}: incomplete or invalid GPT description ({error})") from None
+    weights = {k.removeprefix("net."): v for k, v in tensors.items() if k.startswith("net.")}
+    weights["observation_mean"], weights["observation_std"] = tensors["observation_mean"], tensors["observation_std"]
+    try:
+        model.load_state_dict(weights)
+    except RuntimeError as error:
+        first = str(error).splitlines()[1:2]
+        raise GptFileError(
+            f"{path}: its weights do not fit the architecture it describes ({spec.config['layers']} layers, "
+            f"{spec.config['heads']} heads, embedding {spec.config['embedding_size']}): {' '.join(first).strip()}"
+        ) from None
+    model.eval()
+    return model

@@ -1,0 +1,133 @@
+"""Training the motion GPT on the rollout dataset (seed B.4); ends by writing ``gpt.safetensors``.
+
+``train_gpt(data, out)`` writes into ``out``:
+
+* ``checkpoint.pt``, ``history.json``, ``tensorboard/`` (see :mod:`distill.trainer`,
+  the same loop that distils the multi-clip policy);
+* ``gpt.safetensors``: the model file (:mod:`distill.gpt.model`);
+* ``gpt.json``: the settings and the outcome.
+
+Windows of ``block_size`` consecutive states and the experts' mean actions are
+drawn from the dataset (short snippets upsampled, as for distillation); states
+are standardised with the dataset statistics, which the file keeps. Longer
+windows (``SamplerConfig.window > block_size``) train with the same sliding
+window the roll-out uses.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import torch
+
+from distill.dataset.reader import RolloutDataset
+from distill.dataset.sampler import SamplerConfig, WindowDataset
+from distill.gpt.model import GptConfig, GptSpec, MotionGpt
+from distill.trainer import TrainerConfig, TrainingOutcome, distributed_from_environment, train
+from foundation.atomic import write_json
+from foundation.provenance import provenance
+
+GPT_FILE = "gpt.safetensors"
+
+
+@dataclass(frozen=True)
+class GptResult:
+    """What :func:`train_gpt` produced.
+
+    Attributes:
+        model: Path of the GPT file.
+        parameters: Trainable parameters of the model.
+        outcome: The training loop's outcome.
+    """
+
+    model: Path
+    parameters: int
+    outcome: TrainingOutcome
+
+
+def default_gpt_trainer() -> TrainerConfig:
+    """The seed's Table 4 loop: AdamW 3e-6, weight decay 0.1, batch 256, clip 1, 2M steps."""
+    return TrainerConfig(steps=2_000_000, learning_rate=3e-6, weight_decay=0.1, batch_size=256, grad_clip=1.0)
+
+
+def default_gpt_sampler(gpt: GptConfig | None = None) -> SamplerConfig:
+    """Windows of the block size, unweighted (plain mean-squared error, as the seed)."""
+    return SamplerConfig(window=(gpt or GptConfig()).block_size, weighting="bc", normalize_observations=True)
+
+
+def train_gpt(
+    data: str | os.PathLike,
+    out: str | os.PathLike,
+    gpt: GptConfig | None = None,
+    trainer: TrainerConfig | None = None,
+    sampler: SamplerConfig | None = None,
+    progress: bool = True,
+) -> GptResult:
+    """Trains the GPT on a rollout dataset and writes ``out/gpt.safetensors``.
+
+    Args:
+        data: A rollout dataset folder (or file, or list of files).
+        out: Output folder; a rerun resumes the checkpoint there.
+        gpt: Architecture (Table 4 defaults).
+        trainer: Loop settings (default :func:`default_gpt_trainer`).
+        sampler: Window settings (default :func:`default_gpt_sampler`); states
+            are always standardised and the targets are always mean actions.
+        progress: Show progress bars and print the parameter count.
+
+    Raises:
+        DatasetError: The dataset lacks an observable the GPT reads.
+        CheckpointMismatchError: ``out`` holds a checkpoint of another architecture or settings.
+    """
+    gpt = gpt or GptConfig()
+    trainer = trainer or default_gpt_trainer()
+    sampler = dataclasses.replace(sampler or default_gpt_sampler(gpt), normalize_observations=True, actions="mean")
+    out = Path(out)
+    dataset = RolloutDataset(data)
+    try:
+        sizes = dataset.require_observables(gpt.observables, "the GPT")
+        windows = WindowDataset(dataset, {"states": gpt.observables}, sampler)
+        means, stds = windows.statistics()
+        spec = GptSpec(config=asdict(gpt), observation_sizes=sizes, action_size=windows.action_size)
+        torch.manual_seed(trainer.seed)  # the initial weights follow the trainer's seed
+        model = MotionGpt(spec, means["states"], stds["states"])
+        count = model.parameter_count()
+        place = distributed_from_environment()
+        if progress and place.is_main:
+            print(
+                f"motion GPT: {count:,} parameters ({gpt.layers} layers, {gpt.heads} heads, "
+                f"embedding {gpt.embedding_size}, block {gpt.block_size})"
+            )
+        files = [str(p.resolve()) for p in dataset.files]
+        settings = {"gpt": asdict(gpt), "sampler": asdict(sampler), "data": files}
+
+        def batches(seed: int, batch_size: int, device):
+            return windows.batches(batch_size, seed=seed, device=device)
+
+        outcome = train(model, batches, out, trainer, settings, progress=progress, description="training GPT")
+        # Under torchrun rank 0 alone writes; a finished run keeps its file.
+        if not place.is_main or (outcome.already_finished and (out / GPT_FILE).is_file()):
+            return GptResult(out / GPT_FILE, count, outcome)
+        model.cpu().eval()
+        facts = {"dataset": files, "steps": outcome.steps, "final_loss": outcome.final_loss}
+        model.spec = dataclasses.replace(model.spec, provenance=provenance(**facts))
+        path = model.save(out / GPT_FILE)
+        write_json(
+            out / "gpt.json",
+            {
+                "gpt": asdict(gpt),
+                "trainer": asdict(trainer),
+                "sampler": asdict(sampler),
+                "data": files,
+                "parameters": count,
+                "steps": outcome.steps,
+                "resumed_from": outcome.resumed_from,
+                "final_loss": outcome.final_loss,
+                "seconds": outcome.seconds,
+            },
+        )
+        return GptResult(path, count, outcome)
+    finally:
+        dataset.close()

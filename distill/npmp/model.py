@@ -1,0 +1,321 @@
+"""The multi-clip tracking policy (seed B.2): a recurrent stochastic encoder and the decoder.
+
+``pi(a_t, z_t | s_t, s_ref_t, z_{t-1}) = pi_enc(z_t | s_t, s_ref_t, z_{t-1}) pi_dec(a_t | s_t, z_t)``
+
+* encoder: MLP (2 x 1024, layer norm, ELU) over ``[normalised encoder
+  observation, z_{t-1}]`` giving the mean and log standard deviation of ``z_t``;
+* decoder: :func:`hierarchy.decoder.decoder_network` (3 x 1024, layer norm,
+  ELU) over ``[normalised decoder observation, z_t]`` giving the action mean; the
+  action distribution is Gaussian with a fixed standard deviation (0.1);
+* objective per window of T steps (backpropagation through time):
+  ``sum_t [w_t log pi_dec(a_bar_t | s_t, z_t) - beta KL(pi_enc || N(alpha z_{t-1}, (1 - alpha^2) I))]``
+  averaged over batch and time, with ``z_0 ~ N(0, I)``, the experts' mean
+  actions ``a_bar`` as targets and the sampler's per-step weights ``w``.
+
+Observations arrive already standardised with the dataset statistics (the
+sampler does it); the exported :class:`hierarchy.LatentDecoder` carries the
+same statistics and standardises raw observations itself.
+
+The whole policy (for evaluation on clips) saves as one safetensors file with
+JSON metadata, like the decoder file.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from foundation.described_file import read_described, write_described
+from foundation.networks import ACTIVATIONS, mlp
+from foundation.provenance import provenance
+from hierarchy.decoder import DecoderSpec, LatentDecoder, decoder_network
+from tasks.observables import DECODER, OBSERVABLE_SETS, flat_batch
+
+POLICY_FORMAT = "mocap_hierarchy.multi_clip_policy"
+POLICY_SCHEMA_VERSION = 1
+
+
+@dataclass(frozen=True)
+class NpmpConfig:
+    """The multi-clip policy's architecture and objective (seed B.2, Table 2).
+
+    Attributes:
+        latent_size: Size of ``z``.
+        encoder_layers: Hidden sizes of the encoder.
+        decoder_layers: Hidden sizes of the decoder.
+        activation: Hidden activation (``elu``).
+        layer_norm: Layer norm after each hidden linear layer.
+        kl_weight: ``beta``.
+        alpha: Autoregressive parameter of the prior (0; Merel et al. use 0.95).
+        action_std: Fixed standard deviation of the decoder's Gaussian.
+        min_encoder_std: Lower bound of the encoder's standard deviation.
+        encoder_observables: Encoder inputs (state and reference).
+        decoder_observables: Decoder inputs (proprioception only).
+        latent_bound: Bound of ``z`` recorded in the decoder file for high-level policies.
+    """
+
+    latent_size: int = 60
+    encoder_layers: tuple[int, ...] = (1024, 1024)
+    decoder_layers: tuple[int, ...] = (1024, 1024, 1024)
+    activation: str = "elu"
+    layer_norm: bool = True
+    kl_weight: float = 0.1
+    alpha: float = 0.0
+    action_std: float = 0.1
+    min_encoder_std: float = 1e-5
+    encoder_observables: tuple[str, ...] = OBSERVABLE_SETS["encoder"]
+    decoder_observables: tuple[str, ...] = DECODER
+    latent_bound: float = 3.0
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.alpha < 1.0:
+            raise ValueError(f"alpha must be in [0, 1), got {self.alpha}")
+        if self.activation not in ACTIVATIONS:
+            raise ValueError(f"activation must be one of {', '.join(ACTIVATIONS)}")
+
+
+@dataclass(frozen=True)
+class NpmpSpec:
+    """A trained policy's architecture and inputs (the JSON part of its file).
+
+    Attributes:
+        config: The :class:`NpmpConfig` as a dict.
+        encoder_sizes: Encoder observation keys and sizes, in input order.
+        decoder_sizes: Decoder observation keys and sizes, in input order.
+        ref_steps: Reference look-ahead of the encoder's reference observables.
+        action_size: Number of actions.
+        provenance: Dataset, steps, date, library version.
+    """
+
+    config: dict[str, Any]
+    encoder_sizes: dict[str, int]
+    decoder_sizes: dict[str, int]
+    ref_steps: tuple[int, ...]
+    action_size: int = 56
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def observation_keys(self) -> tuple[str, ...]:
+        """Every observable the policy reads: the encoder's, then the decoder's others."""
+        return tuple(dict.fromkeys([*self.encoder_sizes, *self.decoder_sizes]))
+
+    @property
+    def npmp(self) -> NpmpConfig:
+        """The config as a dataclass."""
+        fields = dict(self.config)
+        for name in ("encoder_layers", "decoder_layers", "encoder_observables", "decoder_observables"):
+            fields[name] = tuple(fields[name])
+        return NpmpConfig(**fields)
+
+
+class NpmpPolicy(nn.Module):
+    """Encoder and decoder of the multi-clip policy (see the module docstring).
+
+    Args:
+        spec: Architecture and inputs.
+        encoder_mean, encoder_std: Standardisation of the flat encoder observation.
+        decoder_mean, decoder_std: Standardisation of the flat decoder observation.
+    """
+
+    encoder_mean: torch.Tensor
+    encoder_std: torch.Tensor
+    decoder_mean: torch.Tensor
+    decoder_std: torch.Tensor
+
+    def __init__(
+        self,
+        spec: NpmpSpec,
+        encoder_mean: np.ndarray | torch.Tensor,
+        encoder_std: np.ndarray | torch.Tensor,
+        decoder_mean: np.ndarray | torch.Tensor,
+        decoder_std: np.ndarray | torch.Tensor,
+    ) -> None:
+        super().__init__()
+        self.spec = spec
+        config = self.config = spec.npmp
+        encoder_size = sum(spec.encoder_sizes.values())
+        self.encoder = mlp(
+            encoder_size + config.latent_size,
+            config.encoder_layers,
+            2 * config.latent_size,
+            config.activation,
+            config.layer_norm,
+        )
+        self.decoder = decoder_network(self.decoder_spec())
+        for name, value in (
+            ("encoder_mean", encoder_mean),
+            ("encoder_std", encoder_std),
+            ("decoder_mean", decoder_mean),
+            ("decoder_std", decoder_std),
+        ):
+            self.register_buffer(name, torch.as_tensor(np.asarray(value), dtype=torch.float32).reshape(-1))
+
+    def decoder_spec(self, facts: dict[str, Any] | None = None) -> DecoderSpec:
+        """The :class:`DecoderSpec` of this policy's decoder."""
+        config = self.config
+        return DecoderSpec(
+            observation_sizes=dict(self.spec.decoder_sizes),
+            latent_size=config.latent_size,
+            latent_bound=config.latent_bound,
+            action_size=self.spec.action_size,
+            hidden_layers=config.decoder_layers,
+            layer_norm=config.layer_norm,
+            activation=config.activation,
+            provenance=facts or {},
+        )
+
+    # The model ------------------------------------------------------------------
+
+    def encode(self, encoder_input: torch.Tensor, z_previous: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Mean and standard deviation of ``z_t`` from normalised encoder inputs ``(N, D)`` and ``z_{t-1}``."""
+        out = self.encoder(torch.cat([encoder_input, z_previous], dim=-1))
+        mean, log_std = out.chunk(2, dim=-1)
+        return mean, log_std.exp().clamp_min(self.config.min_encoder_std)
+
+    def decode(self, decoder_input: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
+        """Action means from normalised decoder inputs and ``z`` (unclipped)."""
+        return self.decoder(torch.cat([decoder_input, z], dim=-1))
+
+    def forward(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
+        """The seed's objective on a batch of windows (the trainer's loss).
+
+        Args:
+            batch: ``encoder`` ``(B, T, De)`` and ``decoder`` ``(B, T, Dd)``
+                (normalised), ``actions`` ``(B, T, 56)`` targets, ``weights`` ``(B, T)``.
+
+        Returns:
+            ``(loss, {"nll", "kl", "mse"})``, each averaged over batch and time (the metrics detached).
+        """
+        config = self.config
+        encoder_input, decoder_input = batch["encoder"], batch["decoder"]
+        targets, weights = batch["actions"], batch["weights"]
+        size, steps = targets.shape[:2]
+        z = torch.randn(size, config.latent_size, device=targets.device)
+        prior_std = math.sqrt(1.0 - config.alpha**2)
+        nll = kl = squared = targets.new_zeros(())
+        for t in range(steps):
+            mean, std = self.encode(encoder_input[:, t], z)
+            prior_mean = config.alpha * z
+            z_next = mean + std * torch.randn_like(std)
+            actions = self.decode(decoder_input[:, t], z_next)
+            error = ((actions - targets[:, t]) / config.action_std) ** 2
+            log_likelihood = -0.5 * error.sum(-1) - targets.shape[-1] * (
+                math.log(config.action_std) + 0.5 * math.log(2 * math.pi)
+            )
+            nll = nll - (weights[:, t] * log_likelihood).sum()
+            kl = kl + _gaussian_kl(mean, std, prior_mean, prior_std).sum()
+            squared = squared + ((actions.detach() - targets[:, t]) ** 2).mean(-1).sum()
+            z = z_next
+        count = size * steps
+        loss = (nll + config.kl_weight * kl) / count
+        return loss, {"nll": nll.detach() / count, "kl": kl.detach() / count, "mse": squared / count}
+
+    @torch.no_grad()
+    def act(
+        self, encoder_observation: np.ndarray, decoder_observation: np.ndarray, z_previous: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Deterministic rollout step for a batch: ``(actions clipped to [-1, 1], z)``.
+
+        Args:
+            encoder_observation: Raw flat encoder observations ``(N, De)``.
+            decoder_observation: Raw flat decoder observations ``(N, Dd)``.
+            z_previous: ``(N, latent_size)``; zeros at an episode's start.
+        """
+        device = self.encoder_mean.device
+        encoder_in = torch.as_tensor(encoder_observation, dtype=torch.float32, device=device)
+        decoder_in = torch.as_tensor(decoder_observation, dtype=torch.float32, device=device)
+        encoder_in = (encoder_in - self.encoder_mean) / self.encoder_std
+        decoder_in = (decoder_in - self.decoder_mean) / self.decoder_std
+        z, _ = self.encode(encoder_in, torch.as_tensor(z_previous, dtype=torch.float32, device=device))
+        actions = self.decode(decoder_in, z).clamp(-1.0, 1.0)
+        return actions.double().cpu().numpy(), z.cpu().numpy()
+
+    def act_batch(
+        self, observations: Mapping[str, np.ndarray], z_previous: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`act` on batched observation dicts ``{key: (N, size)}`` (flattened in the spec's key order)."""
+        encoder_in = flat_batch(observations, self.spec.encoder_sizes)
+        return self.act(encoder_in, flat_batch(observations, self.spec.decoder_sizes), z_previous)
+
+    # Export and files -------------------------------------------------------------
+
+    def export_decoder(self, **facts: Any) -> LatentDecoder:
+        """The trained decoder as a frozen :class:`hierarchy.LatentDecoder` (a copy)."""
+        state = {k: v.detach().cpu().clone() for k, v in self.decoder.state_dict().items()}
+        return LatentDecoder(
+            self.decoder_spec(provenance(**facts)),
+            self.decoder_mean.cpu(),
+            self.decoder_std.cpu(),
+            state,
+        )
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Writes the whole policy (weights, normalisers, :class:`NpmpSpec`) atomically."""
+        return write_described(path, dict(self.state_dict()), POLICY_FORMAT, POLICY_SCHEMA_VERSION, asdict(self.spec))
+
+
+class MultiClipPrompt:
+    """The multi-clip policy driving several tracking environments (deterministic latents, zero at each start).
+
+    Used by the multi-clip evaluation and as a prompt policy of motion completion
+    (:class:`distill.gpt.completion.PromptPolicy`).
+
+    Args:
+        policy: The policy.
+        rows: Environments it serves.
+    """
+
+    def __init__(self, policy: NpmpPolicy, rows: int) -> None:
+        self.policy = policy
+        self.keys = policy.spec.observation_keys
+        self.ref_steps = tuple(policy.spec.ref_steps)
+        self._z = np.zeros((rows, policy.config.latent_size), dtype=np.float32)
+
+    def act(self, observations, envs, rows):
+        """Tracks the reference with the encoder's mean latent (the policy's own deterministic step)."""
+        del envs
+        actions, self._z[rows] = self.policy.act_batch(observations, self._z[rows])
+        return actions
+
+    def reset(self, row: int) -> None:
+        """The next episode of ``row`` starts from ``z = 0``."""
+        self._z[row] = 0.0
+
+
+def load_policy(path: str | os.PathLike) -> NpmpPolicy:
+    """Reads a file written by :meth:`NpmpPolicy.save` (no pickle).
+
+    Raises:
+        FileNotFoundError: No such file.
+        ValueError: Another format, a newer schema or corrupt content.
+    """
+    description, tensors = read_described(
+        path,
+        POLICY_FORMAT,
+        POLICY_SCHEMA_VERSION,
+        "multi-clip policy",
+        missing_hint=" (`mocap-hierarchy distill train` writes it)",
+    )
+    description["ref_steps"] = tuple(description["ref_steps"])
+    spec = NpmpSpec(**description)
+    policy = NpmpPolicy(
+        spec, tensors["encoder_mean"], tensors["encoder_std"], tensors["decoder_mean"], tensors["decoder_std"]
+    )
+    policy.load_state_dict(tensors)
+    policy.eval()
+    return policy
+
+
+def _gaussian_kl(mean: torch.Tensor, std: torch.Tensor, prior_mean: torch.Tensor, prior_std: float) -> torch.Tensor:
+    """``KL(N(mean, std^2) || N(prior_mean, prior_std^2))`` summed over the last axis."""
+    variance_ratio = (std / prior_std) ** 2
+    difference = ((mean - prior_mean) / prior_std) ** 2
+    return 0.5 * (variance_ratio + difference - 1.0 - torch.log(variance_ratio)).sum(-1)

@@ -1,0 +1,107 @@
+"""Command-line subcommands of ``tasks``: clip files and the task registry."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from tasks.clips.format import list_clips
+from tasks.clips.snippets import snippets_of_clip, split_snippets
+from tasks.clips.sources import cmu_file_help, find_cmu_file, resolve_clip_file, synthetic_library_path
+
+
+def add_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Registers ``clips ...`` and ``tasks``."""
+    clips = subparsers.add_parser("clips", help="clip files: synthetic library, listing, snippet splitting")
+    commands = clips.add_subparsers(dest="clips_command", required=True, metavar="COMMAND")
+
+    write = commands.add_parser("write-synthetic", help="generate the synthetic clip library (deterministic)")
+    write.add_argument(
+        "--out", type=Path, default=None, help=f"output .h5 (default: the cache, {synthetic_library_path()})"
+    )
+    write.add_argument("--clip", action="append", default=None, help="only this clip id (repeatable)")
+    write.set_defaults(handler=_write_synthetic)
+
+    listing = commands.add_parser("list", help="list the clips of a clip file with their lengths and snippets")
+    listing.add_argument("--clips", type=Path, default=None, help="clip file (default: the synthetic library)")
+    listing.add_argument("--cmu", action="store_true", help="list the CMU 2020 file (never downloaded)")
+    listing.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    listing.set_defaults(handler=_list)
+
+    snippets = commands.add_parser("snippets", help="print the snippet ids of clips (one per line)")
+    snippets.add_argument("clip_ids", nargs="*", help="clips to split (default: all in the file)")
+    snippets.add_argument("--clips", type=Path, default=None, help="clip file (default: the synthetic library)")
+    snippets.add_argument("--cmu", action="store_true", help="use the CMU 2020 file (never downloaded)")
+    snippets.set_defaults(handler=_snippets)
+
+    split = commands.add_parser("split", help="split a clip length into snippets (seed B.1.1)")
+    split.add_argument("length", type=int, help="number of steps in the clip")
+    split.add_argument("--max-len", type=int, default=210)
+    split.add_argument("--overlap", type=int, default=33)
+    split.set_defaults(handler=_split)
+
+    registry = subparsers.add_parser("tasks", help="list the registered tasks")
+    registry.set_defaults(handler=_tasks)
+
+
+def _clip_file(args: argparse.Namespace) -> Path:
+    if getattr(args, "cmu", False):
+        path = find_cmu_file()
+        if path is None:
+            raise SystemExit(cmu_file_help())
+        return path
+    return resolve_clip_file(args.clips)
+
+
+def _write_synthetic(args: argparse.Namespace) -> None:
+    from tasks.clips.synthetic.library import write_synthetic_library
+
+    path = write_synthetic_library(args.out or synthetic_library_path(), clip_ids=args.clip)
+    clips = list_clips(path)
+    print(f"wrote {len(clips)} clips, {sum(clips.values())} frames, to {path}")
+
+
+def _list(args: argparse.Namespace) -> None:
+    path = _clip_file(args)
+    clips = list_clips(path)
+    rows = [
+        {
+            "clip": clip_id,
+            "frames": frames,
+            "seconds": round(frames * 0.03, 2),
+            "snippets": len(snippets_of_clip(clip_id, frames)),
+        }
+        for clip_id, frames in clips.items()
+    ]
+    if args.json:
+        print(json.dumps({"file": str(path), "clips": rows}, indent=2))
+        return
+    print(f"{path}: {len(rows)} clips")
+    print(f"{'clip':<24}{'frames':>8}{'seconds':>9}{'snippets':>10}")
+    for row in rows:
+        print(f"{row['clip']:<24}{row['frames']:>8}{row['seconds']:>9}{row['snippets']:>10}")
+
+
+def _snippets(args: argparse.Namespace) -> None:
+    path = _clip_file(args)
+    clips = list_clips(path)
+    wanted = args.clip_ids or list(clips)
+    missing = [c for c in wanted if c not in clips]
+    if missing:
+        raise SystemExit(f"{path} has no clip(s) {missing}; see `mocap-hierarchy clips list`")
+    for clip_id in wanted:
+        for snippet in snippets_of_clip(clip_id, clips[clip_id]):
+            print(snippet)
+
+
+def _split(args: argparse.Namespace) -> None:
+    for start, end in split_snippets(args.length, args.max_len, args.overlap):
+        print(f"{start}-{end}")
+
+
+def _tasks(args: argparse.Namespace) -> None:
+    from tasks.registry import REGISTRY
+
+    for entry in REGISTRY.values():
+        print(f"{entry.name:<18}{entry.gym_id:<38}{entry.description}")

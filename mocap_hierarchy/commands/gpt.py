@@ -1,0 +1,111 @@
+"""Command-line subcommands ``gpt train`` and ``gpt complete``."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from pathlib import Path
+
+from distill.dataset.sampler import SamplerConfig
+from distill.gpt.completion import CompletionConfig
+from distill.gpt.model import GptConfig
+from distill.gpt.training import GPT_FILE, default_gpt_sampler, default_gpt_trainer, train_gpt
+from distill.trainer import TrainerConfig, distributed_from_environment
+from foundation.config_cli import add_dataclass_arguments, dataclass_from_args, file_in_folder
+
+
+def add_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Registers ``gpt train`` and ``gpt complete``."""
+    gpt = subparsers.add_parser("gpt", help="motion GPT: train on the rollout dataset, complete motions")
+    commands = gpt.add_subparsers(dest="gpt_command", required=True, metavar="COMMAND")
+
+    train = commands.add_parser("train", help="train the GPT (resumes if interrupted; torchrun for many GPUs)")
+    train.add_argument("--data", type=Path, required=True, help="rollout dataset folder")
+    train.add_argument("--out", type=Path, required=True, help="output folder (gpt.safetensors lands here)")
+    add_dataclass_arguments(train, TrainerConfig, base=default_gpt_trainer())
+    add_dataclass_arguments(train, GptConfig)
+    add_dataclass_arguments(train, SamplerConfig, ("normalize_observations", "actions"), base=default_gpt_sampler())
+    train.set_defaults(handler=_train)
+
+    complete = commands.add_parser("complete", help="prompt with experts (or the multi-clip policy), then the GPT")
+    complete.add_argument("--gpt", type=Path, required=True, help="gpt.safetensors or the folder holding it")
+    source = complete.add_mutually_exclusive_group(required=True)
+    source.add_argument("--experts", type=Path, help="folder of expert directories: each prompts its own snippet")
+    source.add_argument("--policy", type=Path, help="multi-clip policy.safetensors prompting every snippet")
+    complete.add_argument("--snippets", nargs="+", default=None, help="snippet ids (default: every expert's)")
+    complete.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    complete.add_argument(
+        "--json", type=Path, default=None, help="results file (default: <gpt folder>/completion.json)"
+    )
+    add_dataclass_arguments(complete, CompletionConfig)
+    complete.set_defaults(handler=_complete)
+
+
+def _train(args: argparse.Namespace) -> None:
+    gpt = dataclass_from_args(GptConfig, args)
+    result = train_gpt(
+        args.data,
+        args.out,
+        gpt,
+        dataclass_from_args(TrainerConfig, args, base=default_gpt_trainer()),
+        dataclass_from_args(SamplerConfig, args, base=default_gpt_sampler(gpt)),
+    )
+    if not distributed_from_environment().is_main:  # under torchrun, rank 0 alone reports
+        return
+    print(
+        f"trained the GPT ({result.parameters:,} parameters) for {result.outcome.steps} steps "
+        f"(final loss {result.outcome.final_loss:.4g}): {result.model}"
+    )
+
+
+def _complete(args: argparse.Namespace) -> None:
+    from distill.gpt.completion import complete_motions, completion_table
+    from distill.gpt.model import load_gpt
+    from foundation.atomic import write_json
+
+    config = dataclass_from_args(CompletionConfig, args)
+    path = file_in_folder(args.gpt, GPT_FILE)
+    gpt = load_gpt(path)
+    prompts = _prompts(args)
+    results = complete_motions(gpt, prompts, config, clips=args.clips, progress=True)
+    print(completion_table(results))
+    out = args.json or path.parent / "completion.json"
+    write_json(
+        out,
+        {
+            "gpt": str(path),
+            "prompt": str(args.experts or args.policy),
+            "config": dataclasses.asdict(config),
+            "results": results,
+        },
+    )
+    print(f"results written to {out}")
+
+
+def _prompts(args: argparse.Namespace) -> dict:
+    """Snippet -> prompt factory, from ``--experts`` or ``--policy``."""
+    from distill.gpt.completion import ExpertPrompt
+    from distill.npmp.model import MultiClipPrompt, load_policy
+
+    if args.policy is not None:
+        from distill.npmp.training import POLICY_FILE
+
+        path = file_in_folder(args.policy, POLICY_FILE)
+        policy = load_policy(path)
+        if not args.snippets:
+            raise ValueError("name the --snippets to complete when the multi-clip policy prompts")
+        return {snippet: (lambda rows, p=policy: MultiClipPrompt(p, rows)) for snippet in args.snippets}
+
+    from distill.experts.files import find_experts
+    from distill.experts.policy import load_expert
+
+    experts = find_experts(args.experts)
+    if not experts:
+        raise FileNotFoundError(
+            f"no expert directories under {args.experts} (`mocap-hierarchy expert train` makes them)"
+        )
+    snippets = args.snippets or sorted(experts)
+    missing = [s for s in snippets if s not in experts]
+    if missing:
+        raise ValueError(f"no expert for snippets {missing} in {args.experts}; it has: {', '.join(sorted(experts))}")
+    return {s: (lambda rows, root=experts[s].root: ExpertPrompt(load_expert(root))) for s in snippets}

@@ -1,0 +1,108 @@
+"""Command-line subcommands of ``hierarchy``: decoder files and transfer to tasks."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+from pathlib import Path
+
+from foundation.config_cli import add_dataclass_arguments, dataclass_from_args, file_in_folder
+from hierarchy.transfer import TransferConfig
+
+
+def add_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Registers ``decoder ...`` and ``transfer ...``."""
+    decoder = subparsers.add_parser("decoder", help="decoder files: inspect, import MoCapAct's")
+    decoder_commands = decoder.add_subparsers(dest="decoder_command", required=True, metavar="COMMAND")
+    info = decoder_commands.add_parser("info", help="print a decoder file's metadata")
+    info.add_argument("file", type=Path)
+    info.set_defaults(handler=_info)
+    convert = decoder_commands.add_parser(
+        "import-mocapact", help="convert MoCapAct's multi-clip checkpoint (.ckpt) into a decoder file (no code runs)"
+    )
+    convert.add_argument("checkpoint", type=Path, help="MoCapAct's PyTorch Lightning .ckpt")
+    convert.add_argument("out", type=Path, help="decoder file to write")
+    convert.add_argument("--latent-bound", type=float, default=3.0, help="bound of z for high-level policies")
+    convert.set_defaults(handler=_import_mocapact)
+
+    transfer = subparsers.add_parser("transfer", help="high-level PPO on a task, with or without a decoder")
+    transfer_commands = transfer.add_subparsers(dest="transfer_command", required=True, metavar="COMMAND")
+    train = transfer_commands.add_parser("train", help="train a task policy (resumes an interrupted run)")
+    train.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
+    train.add_argument("--decoder", type=Path, default=None, help="decoder file; omit for the no-decoder baseline")
+    train.add_argument("--out", type=Path, required=True)
+    train.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")
+    train.add_argument(
+        "--set", nargs="*", default=[], metavar="FIELD=VALUE", help="task config overrides (JSON values)"
+    )
+    add_dataclass_arguments(train, TransferConfig)
+    train.set_defaults(handler=_train)
+    evaluate = transfer_commands.add_parser("eval", help="run a task policy and report the task's returns")
+    evaluate.add_argument("policy", type=Path, help="policy.safetensors (or the training folder)")
+    evaluate.add_argument("--episodes", type=int, default=10)
+    evaluate.add_argument("--decoder", type=Path, default=None, help="where the policy's decoder file is now")
+    evaluate.add_argument("--max-steps", type=int, default=None, help="shorter episodes than the task's limit")
+    evaluate.add_argument("--seed", type=int, default=0)
+    evaluate.add_argument("--json", type=Path, default=None)
+    evaluate.set_defaults(handler=_evaluate)
+
+
+def _info(args: argparse.Namespace) -> None:
+    from hierarchy.decoder import load_decoder
+
+    decoder = load_decoder(args.file)
+    print(json.dumps(decoder.spec.to_json(), indent=2))
+    print(f"parameters: {sum(p.numel() for p in decoder.parameters())}")
+
+
+def _import_mocapact(args: argparse.Namespace) -> None:
+    from hierarchy.importers.mocapact import import_mocapact_checkpoint
+
+    decoder = import_mocapact_checkpoint(args.checkpoint, latent_bound=args.latent_bound)
+    decoder.save(args.out)
+    spec = decoder.spec
+    print(
+        f"wrote {args.out}: {spec.observation_size} observation values over {len(spec.observation_sizes)} keys, "
+        f"latent {spec.latent_size}, hidden {list(spec.hidden_layers)}, {spec.action_size} actions"
+    )
+
+
+def parse_settings(pairs: list[str]) -> dict:
+    """``FIELD=VALUE`` pairs as a dict; values parse as JSON when they can (lists become tuples)."""
+    out = {}
+    for pair in pairs:
+        if "=" not in pair:
+            raise ValueError(f"task override {pair!r} is not FIELD=VALUE")
+        field, value = pair.split("=", 1)
+        try:
+            parsed = json.loads(value)
+        except json.JSONDecodeError:
+            parsed = value
+        out[field] = tuple(parsed) if isinstance(parsed, list) else parsed
+    return out
+
+
+def _train(args: argparse.Namespace) -> None:
+    from hierarchy.transfer import train_transfer
+
+    config = dataclass_from_args(TransferConfig, args)
+    if args.steps is not None:
+        config = dataclasses.replace(config, total_steps=args.steps)
+    path = train_transfer(args.task, args.out, args.decoder, config, parse_settings(args.set))
+    print(f"task policy written to {path}")
+
+
+def _evaluate(args: argparse.Namespace) -> None:
+    from hierarchy.transfer import POLICY_FILE, evaluate_transfer
+
+    path = file_in_folder(args.policy, POLICY_FILE)
+    summary = evaluate_transfer(path, args.episodes, args.decoder, args.seed, args.max_steps)
+    print(
+        f"{summary.task}: return {summary.mean_return:.2f} +- {summary.std_return:.2f}, "
+        f"length {summary.mean_length:.1f} over {summary.episodes} episodes"
+    )
+    if args.json:
+        from foundation.atomic import write_json
+
+        write_json(args.json, dataclasses.asdict(summary))

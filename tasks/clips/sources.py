@@ -1,0 +1,118 @@
+"""Where clip files come from, in order:
+
+1. a path the caller gives (function argument or ``--clips`` on the CLI);
+2. for CMU clips: the file named by ``$MOCAP_HIERARCHY_CMU_FILE``, else the
+   CMU 2020 file in dm_control's cache (beside the dm_control package or in
+   ``~/.dm_control/``, at its exact size);
+3. otherwise the built-in synthetic library, generated on first use into
+   ``$MOCAP_HIERARCHY_CACHE`` (default ``~/.cache/mocap_hierarchy``).
+
+Nothing is ever downloaded.
+
+Snippet ids and splitting live in :mod:`tasks.clips.sources.snippets`.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+CMU_FILE_ENV = "MOCAP_HIERARCHY_CMU_FILE"
+"""Environment variable naming the CMU 2020 clip file."""
+
+CACHE_ENV = "MOCAP_HIERARCHY_CACHE"
+"""Environment variable naming the cache folder (synthetic library)."""
+
+CMU_2020_FILENAME = "cmu_2020_dfe3e9e0.h5"
+CMU_2020_BYTES = 476_559_420
+
+
+class ClipSourceError(FileNotFoundError):
+    """A requested clip source is not available here."""
+
+
+def cache_dir() -> Path:
+    """The folder for generated files (``$MOCAP_HIERARCHY_CACHE`` or ``~/.cache/mocap_hierarchy``)."""
+    return Path(os.environ.get(CACHE_ENV, Path.home() / ".cache" / "mocap_hierarchy")).expanduser()
+
+
+def find_cmu_file(path: str | os.PathLike | None = None) -> Path | None:
+    """Locates the CMU 2020 clip file without downloading anything.
+
+    Args:
+        path: An explicit path; it must exist.
+
+    Returns:
+        The file, or None when neither the argument, ``$MOCAP_HIERARCHY_CMU_FILE``
+        nor dm_control's cache provides it.
+
+    Raises:
+        ClipSourceError: An explicit path or the environment variable names a
+            file that does not exist.
+    """
+    for given, origin in ((path, "the given path"), (os.environ.get(CMU_FILE_ENV), f"${CMU_FILE_ENV}")):
+        if given:
+            candidate = Path(given).expanduser()
+            if not candidate.is_file():
+                raise ClipSourceError(f"{origin} names {candidate}, which does not exist")
+            return candidate
+    import dm_control.locomotion.mocap as mocap_package
+
+    for folder in (Path(mocap_package.__file__).parent, Path.home() / ".dm_control"):
+        candidate = folder / CMU_2020_FILENAME
+        if candidate.is_file() and candidate.stat().st_size == CMU_2020_BYTES:
+            return candidate
+    return None
+
+
+def cmu_file_help() -> str:
+    """How to make the CMU file available (used in error messages)."""
+    return (
+        f"The CMU 2020 clip file is not available here and is never downloaded automatically. "
+        f"Get {CMU_2020_FILENAME} ({CMU_2020_BYTES:,} bytes, from dm_control's storage bucket) and "
+        f"either put it in ~/.dm_control/, set {CMU_FILE_ENV}=/path/to/it, or pass --clips /path/to/it."
+    )
+
+
+def synthetic_library_path() -> Path:
+    """Where the synthetic library is cached."""
+    from tasks.clips.synthetic.library import GENERATOR_VERSION
+
+    return cache_dir() / f"synthetic_clips_v{GENERATOR_VERSION}.h5"
+
+
+def ensure_synthetic_library(progress: bool = True) -> Path:
+    """The synthetic library, generated on first use (about 10 s, deterministic)."""
+    from tasks.clips.synthetic.library import write_synthetic_library
+
+    path = synthetic_library_path()
+    if not path.is_file():
+        write_synthetic_library(path, progress=progress)
+    return path
+
+
+def resolve_clip_file(
+    clips: str | os.PathLike | None = None, clip_ids: list[str] | tuple[str, ...] = (), progress: bool = True
+) -> Path:
+    """Picks the clip file for a set of clip ids.
+
+    Args:
+        clips: An explicit clip file (always wins).
+        clip_ids: The clips needed; ``CMU_*`` ids need the CMU file.
+        progress: Progress bar if the synthetic library has to be generated.
+
+    Raises:
+        ClipSourceError: CMU clips were asked for and the CMU file is not here.
+    """
+    if clips is not None:
+        path = Path(clips).expanduser()
+        if not path.is_file():
+            raise ClipSourceError(f"clip file {path} does not exist")
+        return path
+    if any(not c.startswith("SYN_") for c in clip_ids):
+        cmu = find_cmu_file()
+        if cmu is None:
+            wanted = sorted(c for c in clip_ids if not c.startswith("SYN_"))
+            raise ClipSourceError(f"clips {wanted[:5]} need the CMU data. {cmu_file_help()}")
+        return cmu
+    return ensure_synthetic_library(progress=progress)

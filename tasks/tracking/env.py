@@ -1,0 +1,425 @@
+"""Clip tracking: a fast Gymnasium twin of dm_control's ``MultiClipMocapTracking``.
+
+The physics, observations, reward and terminations equal dm_control's task
+(a parity test checks every observable to 1e-6 over resets and both
+initialisation modes), but one step costs a fraction of the stock task's:
+
+* the model is compiled once; a reset writes the reference pose into the same
+  ``MjData`` (dm_control recompiles the model on every reset by default);
+* physics runs as one ``mj_step2; mj_step x5; mj_forward`` call sequence, the
+  same arithmetic as dm_control's (see :func:`tasks.simulation.control_step`);
+* observables are computed only for the requested keys, in batched NumPy
+  (dm_control does ~170 scalar quaternion products per step);
+* everything that depends only on the clip is precomputed per snippet.
+
+Episode semantics (dm_control's):
+
+* a random start is a frame in ``[first, end - max(ref_steps) - min_steps)``
+  of the snippet (``min_steps=9`` excludes the last 10 frames, as MoCapAct's
+  experts do); ``init="start"`` always starts at the first frame;
+* ``terminated`` when the tracking error exceeds the threshold (0.3), or the
+  physics diverged; ``truncated`` when the reference runs out;
+* at the end of an episode ``info`` holds MoCapAct's normalised episode
+  reward and length.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import gymnasium as gym
+import mujoco
+import numpy as np
+
+from tasks.clips.format import ClipFileError, open_clip_file, read_clip_from
+from tasks.clips.snippets import SnippetId, parse_snippet_id
+from tasks.clips.sources import resolve_clip_file
+from tasks.geometry import quat_diff, quat_to_axisangle
+from tasks.observables import (
+    ALL_PROPRIOCEPTION,
+    REFERENCE_PER_STEP,
+    SUBTREE_VELOCITY_KEYS,
+    TRACKING_EXTRAS,
+    Proprioception,
+    observation_sizes,
+    resolve_observables,
+)
+from tasks.simulation import checked_action, control_step, forward_without_actuation
+from tasks.tracking.reference import SnippetReference, WalkerState
+from tasks.tracking.rewards import comic_reward, termination_error
+from tasks.walker import CONTROL_TIMESTEP, WalkerModel, build_walker
+
+INITIAL_ERROR_LIMIT = 1e-2
+"""A reference frame must reproduce itself on the walker to this error (dm_control's check)."""
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Configuration of :class:`ClipTrackingEnv` (defaults: the seed's multi-clip setting).
+
+    Attributes:
+        snippets: Snippet ids (``CLIP-START-END``) or clip ids to track; one is
+            chosen per episode, weighted by its number of possible starts.
+        clips: Clip file; None picks the CMU file for ``CMU_*`` ids and the
+            synthetic library otherwise (see :mod:`tasks.clips.sources`).
+        ref_steps: Look-ahead of the reference observables: ``(1, 2, 3, 4, 5)``
+            for the multi-clip policy, ``(0,)`` for snippet experts.
+        observables: Observable set name (``full``, ``expert``, ``encoder``,
+            ``decoder``, ``gpt``) or explicit ``walker/...`` keys.
+        init: ``"random"`` (reference-state initialisation) or ``"start"``.
+        min_steps: Random starts leave at least ``min_steps + 1`` frames (plus
+            the look-ahead) before the snippet's end; 9 excludes the last 10
+            frames (training), 29 the last 30 (the seed's evaluation).
+        termination_threshold: Tracking error that ends an episode.
+        action_noise: Standard deviation of Gaussian noise added to actions
+            (MoCapAct's experts: 0.1); noisy actions are clipped to [-1, 1].
+        snippet_weights: Optional per-snippet weights (default 1 each).
+        residual_actions: Interpret actions as offsets from the reference's
+            next pose: the humanoid receives ``clip(action + pose_to_actuation(
+            reference joints at t+1), -1, 1)``. A zero action then plays the
+            reference back. ``info["action"]`` always holds the absolute action
+            the humanoid received.
+    """
+
+    snippets: tuple[str, ...] = ("SYN_walk_slow",)
+    clips: str | None = None
+    ref_steps: tuple[int, ...] = (1, 2, 3, 4, 5)
+    observables: str | tuple[str, ...] = "full"
+    init: str = "random"
+    min_steps: int = 9
+    termination_threshold: float = 0.3
+    action_noise: float = 0.0
+    snippet_weights: tuple[float, ...] | None = field(default=None)
+    residual_actions: bool = False
+
+
+class ClipMismatchError(ValueError):
+    """A clip's features do not reproduce on the V2020 walker."""
+
+
+class ClipTrackingEnv(gym.Env):
+    """Tracks mocap snippets with the CMU humanoid (see the module docstring).
+
+    Observation: a dict of float64 vectors (keys as in dm_control). Action: 56
+    joint position targets in [-1, 1] (dm_control's position actuators).
+
+    Args:
+        config: Task configuration.
+        walker: A compiled walker to reuse (built if omitted).
+    """
+
+    metadata: ClassVar[dict] = {"render_modes": [], "render_fps": round(1 / CONTROL_TIMESTEP)}
+
+    def __init__(self, config: TrackingConfig | None = None, walker: WalkerModel | None = None) -> None:
+        self.config = config = config or TrackingConfig()
+        if config.init not in ("random", "start"):
+            raise ValueError(f"init must be 'random' or 'start', got {config.init!r}")
+        if not config.ref_steps or min(config.ref_steps) < 0:
+            raise ValueError(f"ref_steps must be non-negative offsets, got {config.ref_steps}")
+        if config.termination_threshold <= 0:
+            raise ValueError("termination_threshold must be positive")
+        if config.action_noise < 0:
+            raise ValueError("action_noise must be >= 0")
+        self.walker = walker or build_walker()
+        self._model = self.walker.model
+        self._data = self.walker.new_data()
+        self._proprioception = Proprioception(self.walker)
+        self._ref_steps = np.sort(np.asarray(config.ref_steps, dtype=np.int64))
+
+        available = (*ALL_PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS)
+        self.observation_keys = resolve_observables(config.observables, available)
+        self._key_set = frozenset(self.observation_keys)
+        self._proprio_keys = [k for k in self.observation_keys if k in ALL_PROPRIOCEPTION]
+        self._needs_subtree_velocity = bool(self._key_set & SUBTREE_VELOCITY_KEYS)
+        sizes = observation_sizes(self.observation_keys, self._ref_steps)
+        self.observation_space = gym.spaces.Dict(
+            {k: gym.spaces.Box(-np.inf, np.inf, (n,), np.float64) for k, n in sizes.items()}
+        )
+        self.action_space = gym.spaces.Box(-1.0, 1.0, (self.walker.num_joints,), np.float64)
+
+        self.snippets = [parse_snippet_id(s) for s in config.snippets]
+        if not self.snippets:
+            raise ValueError("give at least one snippet or clip id to track")
+        self.clip_file = resolve_clip_file(config.clips, [s.clip_id for s in self.snippets])
+        self._references = self._load_references(self.snippets)
+        self._starts, self._start_weights = self._possible_starts(config)
+
+        self._episode_active = False
+        self._reference: SnippetReference = self._references[0]
+        self._snippet_index = 0
+        self._time_step = 0
+        self._time_step_at_reset = 0
+        self._state: WalkerState | None = None
+        self._previous: WalkerState | None = None
+        self._episode_return = 0.0
+        self._episode_length = 0
+        self._start_time_in_clip = 0.0
+
+    # Setup -------------------------------------------------------------------
+
+    def _load_references(self, snippets: list[SnippetId]) -> list[SnippetReference]:
+        references = []
+        with open_clip_file(self.clip_file) as f:
+            clips = {}
+            for snippet in snippets:
+                if snippet.clip_id not in clips:
+                    clips[snippet.clip_id] = read_clip_from(f, snippet.clip_id)
+                clip = clips[snippet.clip_id]
+                if abs(clip.dt - CONTROL_TIMESTEP) > 1e-9:
+                    raise ClipFileError(
+                        f"clip {clip.clip_id} has dt={clip.dt}; the walker's control step is {CONTROL_TIMESTEP}"
+                    )
+                reference = SnippetReference(snippet, clip, self.walker, self._ref_steps)
+                if reference.last_step < 1:
+                    raise ValueError(
+                        f"snippet {snippet} has {reference.num_frames} frames; tracking with "
+                        f"ref_steps up to {self._ref_steps.max()} needs at least {self._ref_steps.max() + 2}"
+                    )
+                references.append(reference)
+        return references
+
+    def _possible_starts(self, config: TrackingConfig) -> tuple[list[tuple[int, int]], np.ndarray]:
+        """``(snippet index, number of possible starts)`` per snippet, and the snippets' probabilities.
+
+        As in dm_control, every possible start carries its snippet's weight.
+        """
+        weights = config.snippet_weights or (1.0,) * len(self.snippets)
+        if len(weights) != len(self.snippets) or min(weights) < 0:
+            raise ValueError("snippet_weights needs one non-negative weight per snippet")
+        ranges, mass = [], []
+        for index, (reference, weight) in enumerate(zip(self._references, weights, strict=True)):
+            if config.init == "start":
+                count = 1
+            else:
+                end = (
+                    reference.first_frame + reference.num_frames
+                    if reference.snippet.end is None
+                    else reference.snippet.end
+                )
+                count = end - int(self._ref_steps.max()) - config.min_steps - reference.first_frame
+                if count < 1:
+                    raise ValueError(
+                        f"snippet {reference.snippet} is too short for random starts with ref_steps up to "
+                        f"{self._ref_steps.max()} and min_steps {config.min_steps}: it needs more than "
+                        f"{self._ref_steps.max() + config.min_steps} frames after its start"
+                    )
+            ranges.append((index, count))
+            mass.append(count * weight)
+        total = float(sum(mass))
+        if total <= 0:
+            raise ValueError("all snippet weights are zero")
+        return ranges, np.asarray(mass) / total
+
+    # Gymnasium API -------------------------------------------------------------
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Starts an episode at a sampled (or given) snippet frame.
+
+        Args:
+            seed: Seeds the start sampling and the action noise.
+            options: ``{"snippet": index or id, "start_step": frame of the
+                clip}`` to choose the start instead of sampling it.
+        """
+        super().reset(seed=seed)
+        index, time_step = self._choose_start(options or {})
+        reference = self._references[index]
+        model, data = self._model, self._data
+        mujoco.mj_resetData(model, data)
+        reference.set_state(data, time_step)
+        forward_without_actuation(model, data)
+        # No mj_subtreeVel here: dm_control only refreshes subtree velocities after
+        # physics steps, so its first observation of walker/torso_{x,y}vel is the
+        # zero left by mj_resetData. We report the same.
+        self._reference, self._snippet_index = reference, index
+        self._time_step = self._time_step_at_reset = time_step
+        self._state = WalkerState.read(self.walker, data)
+        self._previous = self._state
+        error = self._error(self._state)
+        if error > INITIAL_ERROR_LIMIT:
+            raise ClipMismatchError(
+                f"frame {reference.first_frame + time_step} of {reference.snippet.clip_id} does not reproduce on the "
+                f"CMUHumanoidPositionControlledV2020 walker (tracking error {error:.3f} >= {INITIAL_ERROR_LIMIT}); "
+                "the clip was probably made for another walker version or is corrupted"
+            )
+        self._episode_active = True
+        self._episode_return, self._episode_length = 0.0, 0
+        self._start_time_in_clip = reference.time_in_clip(time_step, 0.0)
+        info = {"snippet": str(reference.snippet), "start_step": reference.first_frame + time_step}
+        return self._observation(), info
+
+    def _choose_start(self, options: dict) -> tuple[int, int]:
+        unknown = set(options) - {"snippet", "start_step"}
+        if unknown:
+            raise ValueError(f"unknown reset options {sorted(unknown)}; valid: 'snippet', 'start_step'")
+        if "snippet" in options:
+            index = self._snippet_index_of(options["snippet"])
+        else:
+            index = int(self.np_random.choice(len(self._starts), p=self._start_weights))
+        reference = self._references[index]
+        if "start_step" in options:
+            time_step = int(options["start_step"]) - reference.first_frame
+            if not 0 <= time_step < reference.last_step:
+                raise ValueError(
+                    f"start_step {options['start_step']} is outside snippet {reference.snippet} "
+                    f"(frames {reference.first_frame}..{reference.first_frame + reference.last_step - 1} can start)"
+                )
+        elif self.config.init == "start":
+            time_step = 0
+        else:
+            time_step = int(self.np_random.integers(self._starts[index][1]))
+        return index, time_step
+
+    def _snippet_index_of(self, snippet: int | str) -> int:
+        if isinstance(snippet, (int, np.integer)):
+            if not 0 <= snippet < len(self.snippets):
+                raise ValueError(f"snippet index {snippet} out of range (have {len(self.snippets)})")
+            return int(snippet)
+        wanted = parse_snippet_id(str(snippet))
+        if wanted not in self.snippets:
+            raise ValueError(f"snippet {snippet} is not tracked by this env: {', '.join(map(str, self.snippets))}")
+        return self.snippets.index(wanted)
+
+    def step(self, action):
+        """Applies joint position targets for one 0.03 s control step."""
+        if not self._episode_active:
+            raise RuntimeError("the episode has ended (or never started): call reset() first")
+        action = self.absolute_action(checked_action(action, self.walker.num_joints))
+        if self.config.action_noise > 0:
+            action = np.clip(action + self.np_random.normal(0.0, self.config.action_noise, action.shape), -1.0, 1.0)
+        diverged = control_step(self._model, self._data, action, acceleration_current=self._episode_length > 0)
+        if self._needs_subtree_velocity:
+            mujoco.mj_subtreeVel(self._model, self._data)
+
+        self._time_step = self._next_time_step()
+        self._previous, self._state = self._state, WalkerState.read(self.walker, self._data)
+        state, reference, t = self._state, self._reference, self._time_step
+        error = self._error(state)
+        reward, terms = comic_reward(
+            error,
+            self.config.termination_threshold,
+            state.center_of_mass,
+            reference.center_of_mass[t],
+            state.joints_velocity,
+            reference.joints_velocity[t],
+            state.appendages,
+            reference.appendages[t],
+            state.body_quaternions,
+            reference.body_quaternions[t],
+        )
+        self._episode_length += 1
+        terminated, truncated, end_info = self._episode_end(error, diverged)
+        if diverged:
+            reward = 0.0
+        self._episode_return += reward
+        observation = self._observation()
+        info = {
+            "reward_terms": terms,
+            "termination_error": error,
+            "time_step": reference.first_frame + t,
+            "action": action,
+            **end_info,
+        }
+        if diverged:
+            info["physics_diverged"] = True
+        if terminated or truncated:
+            self._episode_active = False
+            info.update(self._episode_summary())
+        return observation, reward, terminated, truncated, info
+
+    def _next_time_step(self) -> int:
+        """The reference frame after a step (subclasses may hold the reference still)."""
+        return self._time_step + 1
+
+    def _episode_end(self, error: float, diverged: bool) -> tuple[bool, bool, dict]:
+        """``(terminated, truncated, extra info)`` after a step: fail above the error threshold, end with the clip."""
+        terminated = error > self.config.termination_threshold or diverged
+        return terminated, not terminated and self._time_step == self._reference.last_step, {}
+
+    def absolute_action(self, action: np.ndarray) -> np.ndarray:
+        """The joint targets an action stands for at this step.
+
+        Absolute actions are returned as they are; with ``residual_actions`` the
+        reference's next pose plus ``action``, clipped to [-1, 1].
+        """
+        if not self.config.residual_actions:
+            return action
+        return np.clip(action + self.reference_actuation(), -1.0, 1.0)
+
+    def reference_actuation(self) -> np.ndarray:
+        """Actions whose position targets are the reference's next pose (the playback controller)."""
+        reference = self._reference
+        next_frame = min(self._time_step + 1, reference.num_frames - 1)
+        return np.clip(self.walker.pose_to_actuation(reference.joints[next_frame]), -1.0, 1.0)
+
+    def _error(self, state: WalkerState) -> float:
+        t = self._time_step
+        return termination_error(
+            state.body_positions, self._reference.body_positions[t], state.joints, self._reference.joints[t]
+        )
+
+    def _episode_summary(self) -> dict[str, float]:
+        """MoCapAct's normalised episode reward and length."""
+        reference = self._reference
+        start = self._start_time_in_clip
+        end = reference.time_in_clip(self._time_step_at_reset, self._data.time)
+        last = reference.last_step / (reference.num_frames - 1)
+        length_norm = (end - start) / (last - start)
+        return {
+            "episode_return": self._episode_return,
+            "episode_length": self._episode_length,
+            "normalized_episode_length": float(length_norm),
+            "normalized_episode_reward": float(self._episode_return / self._episode_length * length_norm),
+        }
+
+    # Observations ----------------------------------------------------------------
+
+    def _observation(self) -> dict[str, np.ndarray]:
+        data, state, keys = self._data, self._state, self._key_set
+        assert state is not None and self._previous is not None
+        out = self._proprioception.read_all(data, self._proprio_keys)
+        out.update(self._reference.observations(self._time_step, state, keys))
+        if "walker/clip_id" in keys:
+            out["walker/clip_id"] = np.array([float(self._snippet_index)])
+        if "walker/time_in_clip" in keys:
+            out["walker/time_in_clip"] = np.array([self._reference.time_in_clip(self._time_step_at_reset, data.time)])
+        previous = self._previous
+        if "walker/velocimeter_control" in keys:
+            # dm_control rotates by quat_to_mat(previous root quaternion): the pelvis sits
+            # on the free joint without offset, so that is the previous pelvis xmat.
+            velocity = (state.root_position - previous.root_position) / CONTROL_TIMESTEP
+            out["walker/velocimeter_control"] = velocity @ previous.root_xmat
+        if "walker/gyro_control" in keys:
+            turn = quat_diff(previous.root_quat, state.root_quat)
+            out["walker/gyro_control"] = quat_to_axisangle(turn / np.linalg.norm(turn)) / CONTROL_TIMESTEP
+        if "walker/joints_vel_control" in keys:
+            change = (state.joints - previous.joints)[self.walker.mocap_to_observable]
+            out["walker/joints_vel_control"] = change / CONTROL_TIMESTEP
+        return {k: out[k] for k in self.observation_keys}
+
+    # Introspection ----------------------------------------------------------------
+
+    @property
+    def data(self) -> mujoco.MjData:
+        """The simulation state (read it; do not step it yourself)."""
+        return self._data
+
+    @property
+    def reference(self) -> SnippetReference:
+        """The snippet tracked in the current episode."""
+        return self._reference
+
+    @property
+    def time_step(self) -> int:
+        """Current frame relative to the snippet's first frame."""
+        return self._time_step
+
+
+def reference_action(env: ClipTrackingEnv) -> np.ndarray:
+    """The open-loop playback controller: the next reference pose as position targets.
+
+    A baseline that needs no learning (no feedback, so the walker drifts and
+    eventually falls): useful to check a clip is trackable and to time the
+    environment with realistic episode lengths.
+    """
+    return np.zeros(env.walker.num_joints) if env.config.residual_actions else env.reference_actuation()
