@@ -1,4 +1,73 @@
-"""Producers and consumers of the expert-rollout dataset (experts, rollouts, NPMP, GPT).
+"""Producers and consumers of the one expert-rollout dataset, by role.
 
-Empty until the experts/dataset issue lands.
+* :mod:`distill.experts`: snippet experts (config, files, policy, PPO training, evaluation, fan-out);
+* :mod:`distill.dataset`: the rollout dataset (schema, writer, reader, window sampler);
+* :mod:`distill.npmp`: the multi-clip policy; its training writes the frozen decoder file;
+* :mod:`distill.gpt`: the motion GPT and motion completion;
+* :mod:`distill.trainer`: the one supervised loop NPMP and GPT training share.
 """
+
+from typing import TYPE_CHECKING
+
+from foundation.lazy import lazy_exports
+
+if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from distill.dataset.reader import RolloutDataset
+    from distill.dataset.sampler import SamplerConfig
+    from distill.dataset.writer import RolloutConfig, rollout_experts
+    from distill.experts.config import ExpertConfig
+    from distill.experts.policy import ExpertPolicy, load_expert
+    from distill.experts.training import train_expert
+    from distill.gpt.completion import complete_motions
+    from distill.gpt.model import GptConfig, MotionGpt, load_gpt
+    from distill.gpt.training import train_gpt
+    from distill.npmp.model import NpmpConfig, NpmpPolicy, load_policy
+    from distill.npmp.training import train_npmp
+    from distill.trainer import TrainerConfig, TrainingOutcome
+
+__all__ = [
+    "ExpertConfig",
+    "ExpertPolicy",
+    "GptConfig",
+    "MotionGpt",
+    "NpmpConfig",
+    "NpmpPolicy",
+    "RolloutConfig",
+    "RolloutDataset",
+    "SamplerConfig",
+    "TrainerConfig",
+    "TrainingOutcome",
+    "complete_motions",
+    "load_expert",
+    "load_gpt",
+    "load_policy",
+    "rollout_experts",
+    "train_expert",
+    "train_gpt",
+    "train_npmp",
+]
+
+__getattr__, __dir__ = lazy_exports(
+    globals(),
+    {
+        "ExpertConfig": "distill.experts.config",
+        "ExpertPolicy": "distill.experts.policy",
+        "GptConfig": "distill.gpt.model",
+        "MotionGpt": "distill.gpt.model",
+        "NpmpConfig": "distill.npmp.model",
+        "NpmpPolicy": "distill.npmp.model",
+        "RolloutConfig": "distill.dataset.writer",
+        "RolloutDataset": "distill.dataset.reader",
+        "SamplerConfig": "distill.dataset.sampler",
+        "TrainerConfig": "distill.trainer",
+        "TrainingOutcome": "distill.trainer",
+        "complete_motions": "distill.gpt.completion",
+        "load_expert": "distill.experts.policy",
+        "load_gpt": "distill.gpt.model",
+        "load_policy": "distill.npmp.model",
+        "rollout_experts": "distill.dataset.writer",
+        "train_expert": "distill.experts.training",
+        "train_gpt": "distill.gpt.training",
+        "train_npmp": "distill.npmp.training",
+    },
+)

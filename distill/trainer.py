@@ -26,7 +26,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -38,7 +38,7 @@ from torch import nn
 from tqdm.auto import tqdm
 
 from foundation.atomic import atomic_path, write_json
-from foundation.fingerprints import settings_fingerprint
+from foundation.resume import SettingsMismatchError, check_same_settings, settings_record
 
 CHECKPOINT = "checkpoint.pt"
 HISTORY = "history.json"
@@ -75,8 +75,8 @@ class TrainerConfig:
     seed: int = 0
 
 
-class CheckpointMismatchError(ValueError):
-    """A checkpoint in the output folder was written with other settings."""
+CheckpointMismatchError = SettingsMismatchError
+"""A checkpoint in the output folder was written with other settings (or is unreadable)."""
 
 
 @dataclass(frozen=True)
@@ -155,7 +155,7 @@ def train(
         out: Output folder (checkpoint, history, TensorBoard logs).
         config: Loop settings.
         settings: Everything else that determines the result (model and data
-            settings); stored as a fingerprint so a resume with other settings fails.
+            settings); stored in the checkpoint so a resume with other settings fails.
         progress: Show a progress bar.
         description: Progress bar label.
 
@@ -164,6 +164,31 @@ def train(
     """
     started = time.perf_counter()
     out = Path(out)
+    place, device = _start_process(config)
+    torch.manual_seed(config.seed)
+    model.to(device)
+    optimizer = _optimizer(model, config)
+    resume_settings = {"trainer": {k: v for k, v in asdict(config).items() if k not in _FREE}, **settings}
+    step, history = _resume(out / CHECKPOINT, resume_settings, config, model, optimizer)
+    resumed_from = step
+    trained = nn.parallel.DistributedDataParallel(model) if place.world_size > 1 else model
+    model.train()
+    log = _Log(out, history, place, step, config, progress, description)
+    stream = batches(_sampling_seed(config.seed, place.rank, step), config.batch_size // place.world_size, device)
+    while step < config.steps:
+        loss, grad_norm, values = _optimiser_step(trained, model, optimizer, next(stream), config.grad_clip, step)
+        step += 1
+        log.step(step, {"loss": loss, "grad_norm": grad_norm, **values})
+        if place.is_main and (step % config.checkpoint_every == 0 or step == config.steps):
+            _save_checkpoint(out, model, optimizer, step, resume_settings, history)
+    log.close()
+    _end_process(place)
+    final = history["loss"][-1] if history["loss"] else math.nan
+    return TrainingOutcome(step, resumed_from, final, history, time.perf_counter() - started)
+
+
+def _start_process(config: TrainerConfig) -> tuple[Distributed, torch.device]:
+    """This process's place in a DDP run (joined here under ``torchrun``) and its device."""
     place = distributed_from_environment()
     device = resolve_device(config.device, place)
     if place.world_size > 1 and not dist.is_initialized():
@@ -172,63 +197,88 @@ def train(
         torch.cuda.set_device(device)
     if config.batch_size % place.world_size:
         raise ValueError(f"batch_size {config.batch_size} does not split over {place.world_size} processes")
-    torch.manual_seed(config.seed)
-    model.to(device)
-    optimizer = _optimizer(model, config)
-    key = settings_fingerprint({"trainer": {k: v for k, v in asdict(config).items() if k not in _FREE}, **settings})
-    state = _load_checkpoint(out / CHECKPOINT, key, config)
-    history: dict[str, list[float]] = {"step": [], "loss": []}
-    step = 0
-    if state is not None:
-        model.load_state_dict(state["model"])
-        optimizer.load_state_dict(state["optimizer"])
-        step = int(state["step"])
-        history = json.loads(state["history"])
-    resumed_from = step
-    # Sampling depends on (seed, rank, step reached): a resumed run draws fresh batches reproducibly.
-    sampling_seed = int(np.random.SeedSequence([config.seed, place.rank, step]).generate_state(1)[0])
-    trained = nn.parallel.DistributedDataParallel(model) if place.world_size > 1 else model
-    model.train()
-    writer = _tensorboard(out) if place.is_main else None
-    bar = tqdm(
-        total=config.steps, initial=step, desc=description, unit="step", disable=not (progress and place.is_main)
-    )
-    window: dict[str, list[torch.Tensor]] = {}
-    stream = batches(sampling_seed, config.batch_size // place.world_size, device)
-    while step < config.steps:
-        batch = next(stream)
-        loss, values = trained(batch)
-        optimizer.zero_grad(set_to_none=True)
-        loss.backward()
-        grad_norm = torch.nn.utils.clip_grad_norm_(model.parameters(), config.grad_clip)
-        if not torch.isfinite(loss):
-            raise FloatingPointError(
-                f"the loss became {loss.item()} at step {step}; lower the learning rate or check the data"
-            )
-        optimizer.step()
-        step += 1
-        for name, value in {"loss": loss.detach(), "grad_norm": grad_norm, **values}.items():
-            window.setdefault(name, []).append(value)
-        if step % config.log_every == 0 or step == config.steps:
-            means = {name: torch.stack(v).float().mean().item() for name, v in window.items()}
-            window = {}
-            history["step"].append(step)
-            for name, value in means.items():
-                history.setdefault(name, []).append(value)
-                if writer is not None:
-                    writer.add_scalar(f"train/{name}", value, step)
-            bar.set_postfix(loss=f"{means['loss']:.4g}")
-        bar.update()
-        if place.is_main and (step % config.checkpoint_every == 0 or step == config.steps):
-            _save_checkpoint(out, model, optimizer, step, key, history)
-    bar.close()
-    if writer is not None:
-        writer.close()
+    return place, device
+
+
+def _end_process(place: Distributed) -> None:
+    """Waits for every replica to finish (before rank 0 writes the final files) and leaves the DDP group."""
     if place.world_size > 1 and dist.is_initialized():
-        dist.barrier()  # every replica has finished before rank 0 writes the final files
+        dist.barrier()
         dist.destroy_process_group()
-    final = history["loss"][-1] if history["loss"] else math.nan
-    return TrainingOutcome(step, resumed_from, final, history, time.perf_counter() - started)
+
+
+def _resume(
+    path: Path, settings: dict[str, Any], config: TrainerConfig, model: nn.Module, optimizer: torch.optim.Optimizer
+) -> tuple[int, dict[str, list[float]]]:
+    """Loads the checkpoint into ``model`` and ``optimizer`` when there is one: ``(step, history)``."""
+    state = _load_checkpoint(path, settings, config)
+    if state is None:
+        return 0, {"step": [], "loss": []}
+    model.load_state_dict(state["model"])
+    optimizer.load_state_dict(state["optimizer"])
+    return int(state["step"]), json.loads(state["history"])
+
+
+def _sampling_seed(seed: int, rank: int, step: int) -> int:
+    """Sampling depends on (seed, rank, step reached): a resumed run draws fresh batches reproducibly."""
+    return int(np.random.SeedSequence([seed, rank, step]).generate_state(1)[0])
+
+
+def _optimiser_step(
+    trained: nn.Module, model: nn.Module, optimizer: torch.optim.Optimizer, batch: dict, grad_clip: float, step: int
+) -> tuple[torch.Tensor, torch.Tensor, dict[str, torch.Tensor]]:
+    """One clipped optimiser step; refuses a non-finite loss before it reaches the weights."""
+    loss, values = trained(batch)
+    optimizer.zero_grad(set_to_none=True)
+    loss.backward()
+    grad_norm = torch.nn.utils.clip_grad_norm_(model.parameters(), grad_clip)
+    if not torch.isfinite(loss):
+        raise FloatingPointError(
+            f"the loss became {loss.item()} at step {step}; lower the learning rate or check the data"
+        )
+    optimizer.step()
+    return loss.detach(), grad_norm, values
+
+
+class _Log:
+    """Progress bar, TensorBoard and the history: metrics averaged over each ``log_every`` steps (rank 0 writes)."""
+
+    def __init__(
+        self,
+        out: Path,
+        history: dict[str, list[float]],
+        place: Distributed,
+        step: int,
+        config: TrainerConfig,
+        progress: bool,
+        description: str,
+    ) -> None:
+        self.history, self.config = history, config
+        self.writer = _tensorboard(out) if place.is_main else None
+        self.bar = tqdm(
+            total=config.steps, initial=step, desc=description, unit="step", disable=not (progress and place.is_main)
+        )
+        self.window: dict[str, list[torch.Tensor]] = {}
+
+    def step(self, step: int, values: dict[str, torch.Tensor]) -> None:
+        """Collects one step's metrics (no device sync) and logs their means at the interval."""
+        for name, value in values.items():
+            self.window.setdefault(name, []).append(value)
+        if step % self.config.log_every == 0 or step == self.config.steps:
+            means = {name: torch.stack(v).float().mean().item() for name, v in self.window.items()}
+            self.window = {}
+            self.history["step"].append(step)
+            for name, value in means.items():
+                self.history.setdefault(name, []).append(value)
+                if self.writer is not None:
+                    self.writer.add_scalar(f"train/{name}", value, step)
+            self.bar.set_postfix(loss=f"{means['loss']:.4g}")
+        self.bar.update()
+
+    def close(self) -> None:
+        self.bar.close()
+        if self.writer is not None:
+            self.writer.close()
 
 
 def _optimizer(model: nn.Module, config: TrainerConfig) -> torch.optim.Optimizer:
@@ -246,33 +296,131 @@ def _tensorboard(out: Path):
     return SummaryWriter(str(out / "tensorboard"))
 
 
-def _load_checkpoint(path: Path, key: str, config: TrainerConfig) -> dict | None:
+def _load_checkpoint(path: Path, settings: dict[str, Any], config: TrainerConfig) -> dict | None:
     if not path.is_file():
         return None
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)
     except Exception as error:
         raise CheckpointMismatchError(f"{path} is unreadable ({error}); delete it to start over") from None
-    if state.get("fingerprint") != key:
-        raise CheckpointMismatchError(
-            f"{path} was written with other settings (model, data or trainer); use another --out folder, "
-            "or delete the checkpoint to start over"
-        )
+    record = {"fingerprint": state.get("fingerprint")}
+    if "settings" in state:
+        record["settings"] = json.loads(state["settings"])
+    check_same_settings(record, settings, str(path), "model, data or trainer settings")
     if int(state["step"]) > config.steps:
         raise CheckpointMismatchError(f"{path} is at step {state['step']}, beyond the requested {config.steps} steps")
     return state
 
 
 def _save_checkpoint(
-    out: Path, model: nn.Module, optimizer: torch.optim.Optimizer, step: int, key: str, history: dict
+    out: Path, model: nn.Module, optimizer: torch.optim.Optimizer, step: int, settings: dict[str, Any], history: dict
 ) -> None:
+    record = settings_record(settings)
     state = {
         "model": model.state_dict(),
         "optimizer": optimizer.state_dict(),
         "step": step,
-        "fingerprint": key,
+        "fingerprint": record["fingerprint"],
+        "settings": json.dumps(record["settings"]),
         "history": json.dumps(history),
     }
     with atomic_path(out / CHECKPOINT) as temporary:
         torch.save(state, temporary)
     write_json(out / HISTORY, history)
+
+
+# The skeleton NPMP and GPT training share ---------------------------------------
+
+
+@dataclass
+class DatasetTraining:
+    """What :func:`train_on_dataset` did, for the model's own file writer.
+
+    Attributes:
+        model: The trained model (on its training device).
+        outcome: The loop's outcome.
+        data_files: The dataset's files (absolute paths).
+        episodes: Episodes in the dataset.
+        write: This process should write the final files: rank 0, unless the run had
+            already finished and its files are in place (they keep their bytes and hashes).
+    """
+
+    model: nn.Module
+    outcome: TrainingOutcome
+    data_files: list[str]
+    episodes: int
+    write: bool
+
+
+def train_on_dataset(
+    data: str | os.PathLike,
+    out: str | os.PathLike,
+    trainer: TrainerConfig,
+    sampler: Any,
+    groups: Callable[[Any], dict[str, Sequence[str]]],
+    build_model: Callable[[Any], nn.Module],
+    settings: dict[str, Any],
+    outputs: tuple[str, ...],
+    progress: bool = True,
+    description: str = "training",
+) -> DatasetTraining:
+    """Opens a rollout dataset, builds the model on its windows, trains it with :func:`train`.
+
+    Reads top to bottom: data, windows, model (its initial weights follow the
+    trainer's seed), the loop, who writes.
+
+    Args:
+        data: A rollout dataset folder (or file, or list of files).
+        out: Output folder; a rerun resumes the checkpoint there.
+        trainer: Loop settings.
+        sampler: The window sampler's :class:`~distill.dataset.sampler.SamplerConfig`.
+        groups: ``groups(dataset)`` names the observables of each window group (and
+            checks the dataset has them).
+        build_model: ``build_model(windows)`` makes the untrained model (``windows`` is the
+            :class:`~distill.dataset.sampler.WindowDataset`, with statistics and action size).
+        settings: The model's own settings (``{"npmp": ...}``), part of the resume check.
+        outputs: The final files; a finished run that has them all keeps them.
+        progress: Show a progress bar.
+        description: Progress bar label.
+    """
+    from distill.dataset.reader import RolloutDataset
+    from distill.dataset.sampler import WindowDataset
+
+    out = Path(out)
+    dataset = RolloutDataset(data)
+    try:
+        windows = WindowDataset(dataset, groups(dataset), sampler)
+        torch.manual_seed(trainer.seed)  # the initial weights follow the trainer's seed
+        model = build_model(windows)
+        files = [str(p.resolve()) for p in dataset.files]
+        resume = {**settings, "sampler": asdict(sampler), "data": files}
+
+        def batches(seed: int, batch_size: int, device: torch.device) -> Iterator[dict[str, torch.Tensor]]:
+            return windows.batches(batch_size, seed=seed, device=device)
+
+        outcome = train(model, batches, out, trainer, resume, progress=progress, description=description)
+        finished = outcome.already_finished and all((out / name).is_file() for name in outputs)
+        write = distributed_from_environment().is_main and not finished
+        return DatasetTraining(model, outcome, files, len(dataset.episodes), write)
+    finally:
+        dataset.close()
+
+
+def write_run_summary(
+    path: Path, settings: dict[str, Any], trainer: TrainerConfig, sampler: Any, run: DatasetTraining, **extra: Any
+) -> None:
+    """The run's JSON record: its settings, the data and the outcome."""
+    write_json(
+        path,
+        {
+            **settings,
+            "trainer": asdict(trainer),
+            "sampler": asdict(sampler),
+            "data": run.data_files,
+            **extra,
+            "steps": run.outcome.steps,
+            "resumed_from": run.outcome.resumed_from,
+            "final_loss": run.outcome.final_loss,
+            "seconds": run.outcome.seconds,
+        },
+    )

@@ -32,7 +32,7 @@ print(
 )
 
 # 3. Downstream tasks score velocities with a pure function you can reuse.
-from tasks.downstream.velocity_control import reward
+from tasks.downstream.velocity_control import reward  # noqa: E402
 
 print(
     f"\nvelocity reward, 1 m/s east vs. commanded 1.2 m/s north-east: "

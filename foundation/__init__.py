@@ -1,0 +1,76 @@
+"""The ground floor: small helpers every package uses, importing nothing of ours above it.
+
+Nothing heavy is imported here (no MuJoCo, no environments; torch only by the
+modules that build networks or read model files, and only when they are used):
+
+* :mod:`foundation.atomic`: files written under a temporary name, then renamed;
+* :mod:`foundation.fingerprints`: file SHA-256 and settings fingerprints;
+* :mod:`foundation.resume`: one check that a checkpoint was written with the same settings;
+* :mod:`foundation.described_file`: tensors plus a JSON description in one safetensors file;
+* :mod:`foundation.networks`: the MLP layouts of every model file;
+* :mod:`foundation.provenance`: date and library version stamped into files;
+* :mod:`foundation.sb3`: the one stable-baselines3 PPO builder and its save helpers;
+* :mod:`foundation.lockstep`: several environments stepped for one batched policy call;
+* :mod:`foundation.config_cli`: typed dataclass configs as command-line flags;
+* :mod:`foundation.lazy`: package exports imported on first use.
+"""
+
+from typing import TYPE_CHECKING
+
+from foundation.lazy import lazy_exports  # the only eager import: itself light
+
+if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from foundation.atomic import atomic_path, write_json
+    from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
+    from foundation.described_file import read_described, write_described
+    from foundation.fingerprints import file_sha256, settings_fingerprint
+    from foundation.lazy import lazy_exports  # the only eager import: itself light
+    from foundation.lockstep import Lockstep, Transition
+    from foundation.networks import ACTIVATIONS, hidden_stack, mlp
+    from foundation.provenance import library_version, provenance
+    from foundation.sb3 import save_sb3, sb3_policy_layout
+
+__all__ = [
+    "ACTIVATIONS",
+    "Lockstep",
+    "Transition",
+    "add_dataclass_arguments",
+    "atomic_path",
+    "dataclass_from_args",
+    "file_sha256",
+    "hidden_stack",
+    "lazy_exports",
+    "library_version",
+    "mlp",
+    "provenance",
+    "read_described",
+    "save_sb3",
+    "sb3_policy_layout",
+    "settings_fingerprint",
+    "write_described",
+    "write_json",
+]
+
+__getattr__, __dir__ = lazy_exports(
+    globals(),
+    {
+        "ACTIVATIONS": "foundation.networks",
+        "Lockstep": "foundation.lockstep",
+        "Transition": "foundation.lockstep",
+        "add_dataclass_arguments": "foundation.config_cli",
+        "atomic_path": "foundation.atomic",
+        "dataclass_from_args": "foundation.config_cli",
+        "file_sha256": "foundation.fingerprints",
+        "hidden_stack": "foundation.networks",
+        "lazy_exports": "foundation.lazy",
+        "library_version": "foundation.provenance",
+        "mlp": "foundation.networks",
+        "provenance": "foundation.provenance",
+        "read_described": "foundation.described_file",
+        "save_sb3": "foundation.sb3",
+        "sb3_policy_layout": "foundation.sb3",
+        "settings_fingerprint": "foundation.fingerprints",
+        "write_described": "foundation.described_file",
+        "write_json": "foundation.atomic",
+    },
+)

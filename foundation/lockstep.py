@@ -9,8 +9,8 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
 
@@ -48,12 +48,12 @@ class Lockstep:
     """Environments sharing ``episodes`` between them (see the module docstring).
 
     Args:
-        envs: The environments.
+        envs: The Gymnasium environments (any objects with ``reset(seed=)`` and ``step``).
         episodes: Episodes to run in total.
         seeds: Reset seed of each environment's first episode.
     """
 
-    def __init__(self, envs: Sequence[gym.Env], episodes: int, seeds: Sequence[int]) -> None:
+    def __init__(self, envs: Sequence[Any], episodes: int, seeds: Sequence[int]) -> None:
         self.envs = list(envs)
         self.targets = [(episodes + i) // len(self.envs) for i in range(len(self.envs))]
         self.finished = [0] * len(self.envs)

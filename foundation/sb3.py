@@ -1,10 +1,13 @@
-"""stable-baselines3 glue shared by expert training and high-level transfer.
+"""stable-baselines3 glue shared by expert training and high-level transfer: the one PPO builder.
 
 SB3 is imported inside the functions, so importing this module stays cheap.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -41,3 +44,89 @@ def sb3_policy_layout(model) -> tuple[dict[str, int], tuple[int, ...]]:
     net_arch = model.policy.net_arch
     sizes = {k: int(np.prod(s.shape)) for k, s in model.observation_space.spaces.items()}
     return sizes, tuple(net_arch["pi"] if isinstance(net_arch, dict) else net_arch)
+
+
+@dataclass(frozen=True)
+class PpoSettings:
+    """stable-baselines3 PPO hyperparameters in the library's words (SB3's argument in brackets).
+
+    Attributes:
+        learning_rate: Adam step size, or a schedule of the remaining progress (``learning_rate``).
+        steps_per_env: Environment steps per environment between updates (``n_steps``).
+        minibatch_size: Minibatch size (``batch_size``).
+        epochs: Passes over each rollout (``n_epochs``).
+        gamma: Discount factor.
+        gae_lambda: GAE parameter.
+        clip_range: PPO clipping parameter.
+        max_grad_norm: Gradient norm clipping value.
+        hidden_layers: Hidden sizes of the separate policy and value MLPs (tanh).
+        initial_std: Initial standard deviation of the Gaussian policy (``log_std_init`` is its log).
+        entropy_coefficient: Entropy bonus (``ent_coef``).
+        target_kl: KL threshold that stops an update early, or None.
+        seed: Seed of the policy and SB3's sampling.
+        device: Torch device (``auto``, ``cpu``, ``cuda``).
+    """
+
+    learning_rate: float | Callable[[float], float]
+    steps_per_env: int
+    minibatch_size: int
+    epochs: int
+    gamma: float
+    gae_lambda: float
+    clip_range: float
+    max_grad_norm: float
+    hidden_layers: tuple[int, ...]
+    initial_std: float
+    entropy_coefficient: float = 0.0
+    target_kl: float | None = None
+    seed: int | None = 0
+    device: str = "auto"
+
+
+def build_ppo(env: Any, settings: PpoSettings) -> Any:
+    """A new ``stable_baselines3.PPO`` with a ``MultiInputPolicy`` over ``env`` (the library's one PPO builder)."""
+    import torch
+    from stable_baselines3 import PPO
+
+    layers = list(settings.hidden_layers)
+    return PPO(
+        "MultiInputPolicy",
+        env,
+        learning_rate=settings.learning_rate,
+        n_steps=settings.steps_per_env,
+        batch_size=settings.minibatch_size,
+        n_epochs=settings.epochs,
+        gamma=settings.gamma,
+        gae_lambda=settings.gae_lambda,
+        clip_range=settings.clip_range,
+        ent_coef=settings.entropy_coefficient,
+        max_grad_norm=settings.max_grad_norm,
+        target_kl=settings.target_kl,
+        policy_kwargs={
+            "net_arch": {"pi": layers, "vf": list(layers)},
+            "activation_fn": torch.nn.Tanh,
+            "log_std_init": math.log(settings.initial_std),
+        },
+        seed=settings.seed,
+        device=settings.device,
+        verbose=0,
+    )
+
+
+def load_ppo(model_path: Path, normaliser_path: Path, venv: Any, device: str, **custom: Any) -> tuple[Any, Any]:
+    """Resumes a run from its own :func:`save_sb3` files: ``(PPO, VecNormalize around venv)``.
+
+    Args:
+        model_path: The saved model (``.zip``).
+        normaliser_path: The saved ``VecNormalize`` (``.pkl``); its statistics keep updating.
+        venv: The raw vectorised environments to wrap.
+        device: Torch device of the model.
+        **custom: Attributes to set instead of the saved ones (e.g. a learning-rate schedule left out of the file).
+    """
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    normaliser = VecNormalize.load(str(normaliser_path), venv)
+    normaliser.training = True
+    model = PPO.load(str(model_path), env=normaliser, device=device, **custom)
+    return model, normaliser

@@ -1,20 +1,53 @@
-"""The frozen low-level decoder contract and what consumes it (see ARCHITECTURE.md).
+"""The frozen low-level decoder contract and what consumes it (see docs/architecture.md).
 
-* :class:`LatentDecoder`, :func:`load_decoder`: the decoder file (safetensors + JSON);
-* :class:`LatentActionEnv`, :class:`LatentActionVecEnv`: any walker task driven by a latent ``z``.
+* :mod:`hierarchy.decoder`: the contract: :class:`LatentDecoder`, :class:`DecoderSpec`,
+  :func:`load_decoder` (one safetensors file, no pickle);
+* :mod:`hierarchy.latent_env`: any walker task driven by a latent ``z`` (single env and VecEnv);
+* :mod:`hierarchy.task_policy`: the pickle-free high-level policy file;
+* :mod:`hierarchy.transfer`: high-level PPO on a registered task or your own env factory;
+* :mod:`hierarchy.importers`: MoCapAct's checkpoints converted into decoder files.
 
-Consumers (tasks, high-level training, users' own tasks) import only this package.
+Importing this package loads the decoder contract only (torch and safetensors,
+no simulator); the rest is imported when first used. Consumers (tasks, users'
+own code) import only this package, never the distillation trainer.
 """
 
+from typing import TYPE_CHECKING
+
+from foundation.lazy import lazy_exports
 from hierarchy.decoder import DecoderFileError, DecoderMismatchError, DecoderSpec, LatentDecoder, load_decoder
-from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
+
+if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
+    from hierarchy.task_policy import TaskPolicy, load_task_policy
+    from hierarchy.transfer import EvaluationSummary, TransferConfig, evaluate_transfer, train_transfer
 
 __all__ = [
     "DecoderFileError",
     "DecoderMismatchError",
     "DecoderSpec",
+    "EvaluationSummary",
     "LatentActionEnv",
     "LatentActionVecEnv",
     "LatentDecoder",
+    "TaskPolicy",
+    "TransferConfig",
+    "evaluate_transfer",
     "load_decoder",
+    "load_task_policy",
+    "train_transfer",
 ]
+
+__getattr__, __dir__ = lazy_exports(
+    globals(),
+    {
+        "EvaluationSummary": "hierarchy.transfer",
+        "LatentActionEnv": "hierarchy.latent_env",
+        "LatentActionVecEnv": "hierarchy.latent_env",
+        "TaskPolicy": "hierarchy.task_policy",
+        "TransferConfig": "hierarchy.transfer",
+        "evaluate_transfer": "hierarchy.transfer",
+        "load_task_policy": "hierarchy.task_policy",
+        "train_transfer": "hierarchy.transfer",
+    },
+)

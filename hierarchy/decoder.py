@@ -42,6 +42,7 @@ from foundation.networks import ACTIVATIONS, mlp
 DECODER_FORMAT = "mocap_hierarchy.decoder"
 DECODER_SCHEMA_VERSION = 1
 
+
 class DecoderFileError(ValueError):
     """A decoder file is missing, unreadable, or of another format or version."""
 

@@ -15,25 +15,29 @@ logs), ``transfer.json`` (settings and outcome) and, while training,
 
 from __future__ import annotations
 
+import functools
 import json
-import math
 import os
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
-import torch
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import configure
 from tqdm.auto import tqdm
 
 from foundation.atomic import write_json
-from foundation.fingerprints import file_sha256, settings_fingerprint
+from foundation.fingerprints import file_sha256
 from foundation.provenance import provenance
-from foundation.sb3 import save_sb3
+from foundation.resume import check_same_settings, settings_record
+from foundation.sb3 import PpoSettings, build_ppo, load_ppo, save_sb3
 from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
+from tasks import registry
 
 POLICY_FILE = "policy.safetensors"
 CHECKPOINT_DIR = "checkpoint"
@@ -120,32 +124,65 @@ class EvaluationSummary:
     lengths: list[int]
 
 
+@dataclass(frozen=True)
+class TaskSource:
+    """Where a high-level run's environments come from: a registered task or your own factory.
+
+    Attributes:
+        name: The registered name (recorded in the policy file), or a label for a factory.
+        overrides: Config fields changed from the registered task's defaults.
+        factory: Builds one raw environment; picklable, so worker processes can call it.
+        registered: Whether ``name`` is a registry name (``transfer eval`` and ``record`` rebuild it by name).
+    """
+
+    name: str
+    overrides: dict[str, Any]
+    factory: Callable[[], gym.Env]
+    registered: bool
+
+    @classmethod
+    def of(
+        cls, task: str | Callable[[], gym.Env], overrides: dict[str, Any] | None = None, name: str | None = None
+    ) -> TaskSource:
+        """A source for a registered name (with config overrides) or an environment factory.
+
+        Raises:
+            ValueError: Unknown task name, or overrides given with a factory (build them into it).
+        """
+        overrides = dict(overrides or {})
+        if isinstance(task, str):
+            entry = registry.entry(task)
+            entry.config(**overrides)  # unknown settings fail here, not in a worker process
+            return cls(task, overrides, functools.partial(entry.make, **overrides), True)
+        if overrides:
+            raise ValueError("task overrides apply to registered tasks; build them into your env factory instead")
+        label = name or getattr(task, "__name__", type(task).__name__)
+        return cls(label, {}, task, False)
+
+
 def make_task_env(
-    task: str,
-    overrides: dict[str, Any],
+    task: str | TaskSource,
+    overrides: dict[str, Any] | None,
     decoder: LatentDecoder | None,
     max_latent: float = 3.0,
     steps_per_latent: int = 1,
 ):
     """One environment of ``task``, wrapped in the latent action space when a decoder is given."""
-    import tasks
-
-    env = tasks.make(task, **overrides)
+    source = task if isinstance(task, TaskSource) else TaskSource.of(task, overrides)
+    env = source.factory()
     if decoder is None:
         return env
     return LatentActionEnv(env, decoder, max_latent, steps_per_latent)
 
 
-def _vec_env(task: str, overrides: dict[str, Any], decoder: LatentDecoder | None, config: TransferConfig):
+def _vec_env(source: TaskSource, decoder: LatentDecoder | None, config: TransferConfig):
     """Raw task environments, decoded in one batch, then SB3's observation/reward normaliser."""
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
-    import tasks
-
     use_processes = config.subprocess_envs and config.n_envs > 1
     venv = make_vec_env(
-        lambda: tasks.make(task, **overrides),
+        source.factory,
         n_envs=config.n_envs,
         seed=config.seed,
         vec_env_cls=SubprocVecEnv if use_processes else DummyVecEnv,
@@ -156,84 +193,109 @@ def _vec_env(task: str, overrides: dict[str, Any], decoder: LatentDecoder | None
     return VecNormalize(venv, norm_obs=True, norm_reward=config.normalize_reward, gamma=config.gamma)
 
 
+def _ppo_settings(config: TransferConfig, with_decoder: bool) -> PpoSettings:
+    return PpoSettings(
+        learning_rate=config.learning_rate,
+        steps_per_env=config.steps_per_update // config.n_envs,
+        minibatch_size=config.minibatch_size,
+        epochs=config.epochs,
+        gamma=config.gamma,
+        gae_lambda=config.gae_lambda,
+        clip_range=config.clip_range,
+        max_grad_norm=config.max_grad_norm,
+        hidden_layers=config.hidden_layers,
+        initial_std=config.std_for(with_decoder),
+        entropy_coefficient=config.entropy_coefficient,
+        target_kl=config.target_kl,
+        seed=config.seed,
+        device=config.device,
+    )
+
+
 def train_transfer(
-    task: str,
+    task: str | Callable[[], gym.Env],
     out: str | os.PathLike,
     decoder: str | os.PathLike | None = None,
     config: TransferConfig | None = None,
     task_overrides: dict[str, Any] | None = None,
     progress: bool = True,
+    task_name: str | None = None,
 ) -> Path:
-    """Trains a high-level policy on a registered task; returns the policy file.
+    """Trains a high-level policy on a task; returns the policy file.
+
+    Reads top to bottom: settings, the task and decoder, the resume check, a new
+    or resumed PPO, the training loop, the policy file.
 
     Args:
-        task: A registered task name (``tasks.task_names()``).
+        task: A registered task name (``tasks.task_names()``, including tasks added with
+            ``tasks.register``) or a function that builds one environment (picklable when
+            ``config.subprocess_envs``: a module-level function or class, or one in your script).
         out: Output folder; an interrupted run in it is resumed.
         decoder: A decoder file; None trains the no-decoder baseline.
         config: PPO settings (seed defaults).
-        task_overrides: Task config fields to change.
+        task_overrides: Config fields of a registered task to change.
         progress: Show a progress bar.
+        task_name: Label recorded for a factory (default: its ``__name__``).
 
     Raises:
         hierarchy.DecoderMismatchError: The decoder does not fit the task.
+        foundation.resume.SettingsMismatchError: ``out`` holds a run of other settings.
     """
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.logger import configure
-    from stable_baselines3.common.vec_env import VecNormalize
-
     config = config or TransferConfig()
-    overrides = dict(task_overrides or {})
-    out = Path(out)
-    frozen = load_decoder(decoder) if decoder is not None else None
     if config.steps_per_update % config.n_envs:
         raise ValueError(f"steps_per_update {config.steps_per_update} must be a multiple of n_envs {config.n_envs}")
+    out = Path(out)
+    source = TaskSource.of(task, task_overrides, task_name)
+    frozen = load_decoder(decoder) if decoder is not None else None
     decoder_sha = file_sha256(decoder) if decoder is not None else None
     checkpoint = out / CHECKPOINT_DIR
-    key = settings_fingerprint(
-        {
-            "task": task,
-            "overrides": overrides,
-            "decoder": decoder_sha,
-            "config": {k: v for k, v in asdict(config).items() if k not in _RESUME_FREE},
-        }
-    )
-    _check_resume_settings(checkpoint, key)
-    venv = _vec_env(task, overrides, frozen, config)
-    model_file, normaliser_file = checkpoint / "model.zip", checkpoint / "vecnormalize.pkl"
-    if model_file.is_file() and normaliser_file.is_file():
-        # Our own run's files (written below): SB3 needs its pickles to resume the optimiser.
-        assert venv.venv is not None
-        venv = VecNormalize.load(str(normaliser_file), venv.venv)
-        model = PPO.load(str(model_file), env=venv, device=config.device)
-        print(f"resuming {out} from step {model.num_timesteps}")
-    else:
-        model = PPO(
-            "MultiInputPolicy",
-            venv,
-            learning_rate=config.learning_rate,
-            n_steps=config.steps_per_update // config.n_envs,
-            batch_size=config.minibatch_size,
-            n_epochs=config.epochs,
-            gamma=config.gamma,
-            gae_lambda=config.gae_lambda,
-            clip_range=config.clip_range,
-            ent_coef=config.entropy_coefficient,
-            max_grad_norm=config.max_grad_norm,
-            target_kl=config.target_kl,
-            policy_kwargs={
-                "net_arch": {"pi": list(config.hidden_layers), "vf": list(config.hidden_layers)},
-                "activation_fn": torch.nn.Tanh,
-                "log_std_init": math.log(config.std_for(frozen is not None)),
-            },
-            seed=config.seed,
-            device=config.device,
-            verbose=0,
-        )
+    _check_resume_settings(checkpoint, _resume_settings(source, decoder_sha, config))
+
+    venv = _vec_env(source, frozen, config)
+    model = _resume_or_build(checkpoint, venv, config, with_decoder=frozen is not None, out=out)
     model.set_logger(configure(str(out), ["csv", "tensorboard"]))
+
     remaining = config.total_steps - model.num_timesteps
     if remaining > 0:
         callback = _ProgressAndCheckpoint(config.total_steps, config.checkpoint_every, checkpoint, progress)
         model.learn(remaining, callback=callback, reset_num_timesteps=False)
+
+    path = _save_policy(out, model, source, decoder, decoder_sha, config)
+    _save_resume_files(model, checkpoint)
+    venv.close()
+    return path
+
+
+def _resume_settings(source: TaskSource, decoder_sha: str | None, config: TransferConfig) -> dict[str, Any]:
+    """What must match to resume: the task, its overrides, the decoder and the PPO settings."""
+    return {
+        "task": source.name,
+        "overrides": source.overrides,
+        "decoder": decoder_sha,
+        "config": {k: v for k, v in asdict(config).items() if k not in _RESUME_FREE},
+    }
+
+
+def _resume_or_build(checkpoint: Path, venv, config: TransferConfig, with_decoder: bool, out: Path):
+    """The run's own checkpoint when there is one (SB3 needs its pickles for the optimiser), else a new PPO."""
+    model_file, normaliser_file = checkpoint / "model.zip", checkpoint / "vecnormalize.pkl"
+    if model_file.is_file() and normaliser_file.is_file():
+        assert venv.venv is not None
+        model, _ = load_ppo(model_file, normaliser_file, venv.venv, config.device)
+        print(f"resuming {out} from step {model.num_timesteps}")
+        return model
+    return build_ppo(venv, _ppo_settings(config, with_decoder))
+
+
+def _save_policy(
+    out: Path,
+    model,
+    source: TaskSource,
+    decoder: str | os.PathLike | None,
+    decoder_sha: str | None,
+    config: TransferConfig,
+) -> Path:
+    """Writes ``policy.safetensors`` (pickle-free) and ``transfer.json``."""
     decoder_facts = None
     if decoder is not None:
         decoder_facts = {
@@ -244,18 +306,16 @@ def train_transfer(
         }
     policy = task_policy_from_sb3(
         model,
-        venv,
+        model.get_vec_normalize_env(),
         {
-            "task": task,
-            "task_overrides": overrides,
+            "task": source.name,
+            "task_overrides": source.overrides,
             "decoder": decoder_facts,
             "provenance": provenance(steps=int(model.num_timesteps), config=asdict(config)),
         },
     )
     path = policy.save(out / POLICY_FILE)
-    _save_resume_files(model, checkpoint)
-    write_json(out / "transfer.json", {"task": task, "decoder": decoder_facts, "config": asdict(config)})
-    venv.close()
+    write_json(out / "transfer.json", {"task": source.name, "decoder": decoder_facts, "config": asdict(config)})
     return path
 
 
@@ -263,17 +323,13 @@ _RESUME_FREE = ("total_steps", "checkpoint_every", "device", "subprocess_envs")
 """Settings a resumed run may change (a longer budget, other checkpointing or hardware)."""
 
 
-def _check_resume_settings(checkpoint: Path, key: str) -> None:
+def _check_resume_settings(checkpoint: Path, settings: dict[str, Any]) -> None:
     """Refuses to resume a checkpoint of another task, decoder or PPO setting; records the settings of a new one."""
     record = checkpoint / "settings.json"
     if record.is_file():
-        if json.loads(record.read_text()).get("fingerprint") != key:
-            raise ValueError(
-                f"{checkpoint} was trained with another task, decoder or PPO settings; use another --out folder, "
-                "or delete it to start over"
-            )
+        check_same_settings(json.loads(record.read_text()), settings, str(checkpoint), "task, decoder or PPO settings")
     elif not (checkpoint / "model.zip").is_file():
-        write_json(record, {"fingerprint": key})
+        write_json(record, settings_record(settings))
 
 
 def _save_resume_files(model, folder: Path) -> None:
@@ -324,12 +380,32 @@ def load_policy_and_decoder(
     return policy, load_decoder(path)
 
 
+def _evaluation_source(
+    task: str, overrides: dict[str, Any], max_steps: int | None, env_factory: Callable[[], gym.Env] | None
+) -> TaskSource:
+    """The task a policy file names, rebuilt by name, or the caller's factory."""
+    if env_factory is not None:
+        if max_steps is not None:
+            raise ValueError("max_steps applies to registered tasks; build the limit into env_factory instead")
+        return TaskSource.of(env_factory, name=task)
+    if task not in registry.task_names():
+        raise ValueError(
+            f"the policy was trained on {task!r}, which is not a registered task here; register it with "
+            "tasks.register(...) (or install the package that does), or pass env_factory"
+        )
+    overrides = dict(overrides)
+    if max_steps is not None:
+        overrides["max_steps"] = max_steps
+    return TaskSource.of(task, overrides)
+
+
 def evaluate_transfer(
     policy_path: str | os.PathLike,
     episodes: int = 10,
     decoder_path: str | os.PathLike | None = None,
     seed: int = 0,
     max_steps: int | None = None,
+    env_factory: Callable[[], gym.Env] | None = None,
 ) -> EvaluationSummary:
     """Runs a task policy deterministically and summarises the task's returns.
 
@@ -338,17 +414,21 @@ def evaluate_transfer(
         episodes: Episodes to run.
         decoder_path: Override of the decoder file's location.
         seed: Seed of the first episode (then ``seed + 1``, ...).
-        max_steps: Override of the task's episode limit (shorter evaluations).
+        max_steps: Override of the task's episode limit (shorter evaluations; registered tasks only).
+        env_factory: The factory a policy was trained with when its task is not registered.
     """
     if episodes < 1:
         raise ValueError("episodes must be at least 1")
     policy, decoder = load_policy_and_decoder(policy_path, decoder_path)
     spec = policy.spec
-    overrides = dict(spec.task_overrides)
-    if max_steps is not None:
-        overrides["max_steps"] = max_steps
     facts = spec.decoder or {}
-    env = make_task_env(spec.task, overrides, decoder, facts.get("max_latent", 3.0), facts.get("steps_per_latent", 1))
+    env = make_task_env(
+        _evaluation_source(spec.task, spec.task_overrides, max_steps, env_factory),
+        None,
+        decoder,
+        facts.get("max_latent", 3.0),
+        facts.get("steps_per_latent", 1),
+    )
     returns, lengths = [], []
     for episode in range(episodes):
         observation, _ = env.reset(seed=seed + episode)

@@ -1,91 +1,63 @@
-"""The ``mocap-hierarchy`` command: one entry point, one subcommand per job."""
+"""The ``mocap-hierarchy`` command: one entry point, one subcommand per job (see :mod:`mocap_hierarchy.commands`)."""
 
 from __future__ import annotations
 
 import argparse
+import importlib
+import importlib.util
 import sys
 from pathlib import Path
 
-from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
 from mocap_hierarchy import __version__
+from mocap_hierarchy.commands import COMMAND_MODULES
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The full argument parser (every package adds its subcommands)."""
-    from mocap_hierarchy.commands import clips as tasks_cli
-    from mocap_hierarchy.commands import distill as distill_cli
-    from mocap_hierarchy.commands import gpt as gpt_cli
-    from mocap_hierarchy.commands import hierarchy as hierarchy_cli
-
+    """The full argument parser (every module of :mod:`mocap_hierarchy.commands` adds its subcommands)."""
     parser = argparse.ArgumentParser(
         prog="mocap-hierarchy",
         description="Hierarchical humanoid control from motion capture: clips, tracking, skills, transfer.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    parser.add_argument(
+        "--tasks-from",
+        action="append",
+        default=[],
+        metavar="MODULE_OR_FILE",
+        help="import a module or .py file that registers your own tasks (tasks.register) before the command runs",
+    )
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-
-    from mocap_hierarchy.quickstart import QuickstartConfig
-
-    quickstart = subparsers.add_parser("quickstart", help="run the main job on the built-in synthetic clips")
-    add_dataclass_arguments(quickstart, QuickstartConfig)
-    quickstart.set_defaults(handler=_quickstart)
-
-    record = subparsers.add_parser("record", help="record a rollout of any policy on any task into a rerun .rrd file")
-    record.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
-    record.add_argument(
-        "--policy", required=True, help="random, an expert directory, or a policy/decoder/GPT .safetensors file"
-    )
-    record.add_argument("--out", type=Path, required=True, help="the .rrd file to write")
-    record.add_argument("--episodes", type=int, default=1)
-    record.add_argument("--seed", type=int, default=0)
-    record.add_argument("--prompt", default=None, help="expert directory prompting a GPT (motion_completion)")
-    record.add_argument(
-        "--video", type=Path, default=None, help="also write an mp4 (needs MUJOCO_GL=egl or osmesa and the video extra)"
-    )
-    record.add_argument("--set", nargs="+", default=[], metavar="FIELD=VALUE", help="task settings, e.g. max_steps=200")
-    record.set_defaults(handler=_record)
-
-    view = subparsers.add_parser("view", help="open a .rrd recording in the rerun viewer (or say how to)")
-    view.add_argument("file", type=Path)
-    view.set_defaults(handler=_view)
-
-    tasks_cli.add_commands(subparsers)
-    distill_cli.add_commands(subparsers)
-    gpt_cli.add_commands(subparsers)
-    hierarchy_cli.add_commands(subparsers)
+    for name in COMMAND_MODULES:
+        importlib.import_module(f"mocap_hierarchy.commands.{name}").add_commands(subparsers)
     return parser
 
 
-def _quickstart(args: argparse.Namespace) -> None:
-    from mocap_hierarchy.quickstart import QuickstartConfig, run_quickstart
+def load_task_modules(sources: list[str]) -> None:
+    """Imports each module name or ``.py`` file (running its ``tasks.register`` calls).
 
-    run_quickstart(dataclass_from_args(QuickstartConfig, args))
+    A file is imported as ``user_tasks_<stem>`` (never shadowing a package), and its
+    classes are pickled by value, so worker processes (``transfer train`` with subprocess environments) can build
+    its tasks without importing the file themselves.
 
+    Raises:
+        FileNotFoundError: A ``.py`` path that does not exist.
+    """
+    for source in sources:
+        if not source.endswith(".py"):
+            importlib.import_module(source)
+            continue
+        path = Path(source)
+        if not path.is_file():
+            raise FileNotFoundError(f"--tasks-from {source}: no such file")
+        name = f"user_tasks_{path.stem}"
+        spec = importlib.util.spec_from_file_location(name, path)
+        assert spec is not None and spec.loader is not None
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+        import cloudpickle
 
-def _record(args: argparse.Namespace) -> None:
-    from mocap_hierarchy.commands.hierarchy import parse_settings
-    from mocap_hierarchy.record import record
-
-    result = record(
-        args.task,
-        args.policy,
-        args.out,
-        args.episodes,
-        args.seed,
-        parse_settings(args.set),
-        prompt=args.prompt,
-        video=args.video,
-    )
-    print(f"recorded {result['episodes']} episode(s), {result['steps']} steps: {result['path']}")
-    if "video" in result:
-        print(f"video: {result['video']}")
-    print(f"open it with: mocap-hierarchy view {result['path']}")
-
-
-def _view(args: argparse.Namespace) -> None:
-    from mocap_hierarchy.record import view
-
-    print(view(args.file))
+        cloudpickle.register_pickle_by_value(module)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -95,6 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        load_task_modules(args.tasks_from)
         args.handler(args)
     except (ValueError, FileNotFoundError, KeyError, VideoUnavailableError) as error:
         print(f"mocap-hierarchy {args.command}: error: {error}", file=sys.stderr)

@@ -1,18 +1,33 @@
-"""Environments for the CMU humanoid: clips, clip tracking, downstream tasks, registry.
+"""The humanoid's world: clips, clip tracking, downstream tasks, viewing, and the task registry.
 
-``tasks.make(name, **overrides)`` builds any registered task; importing this
-package also registers them with Gymnasium under ``MocapHierarchy/...`` ids.
+* :mod:`tasks.clips`: clip files, snippets, the synthetic library;
+* :mod:`tasks.tracking`: the fast tracking env (equal to dm_control's), its reference and rewards;
+* :mod:`tasks.downstream`: go-to-target, velocity control, motion completion, the walker-task base;
+* :mod:`tasks.viz`: rerun recordings and videos;
+* :mod:`tasks.walker`, :mod:`tasks.observables`, :mod:`tasks.simulation`, :mod:`tasks.geometry`:
+  the CMU humanoid, its observables, the control step, quaternion math;
+* :mod:`tasks.registry`: ``make``, ``register`` and the Gymnasium ids.
+
+``tasks.make(name, **overrides)`` builds any registered task (built-in, registered
+at run time with :func:`register`, or installed through the ``mocap_hierarchy.tasks``
+entry-point group). This package imports nothing above :mod:`foundation`, and
+importing it is cheap (Gymnasium, for the ids; MuJoCo loads with the first environment).
 """
 
 import ctypes.util
 import os
+from typing import TYPE_CHECKING
 
 # Headless by default: offscreen EGL when the library exists, otherwise no
 # rendering at all (MuJoCo and dm_control read this when first imported).
 os.environ.setdefault("MUJOCO_GL", "egl" if ctypes.util.find_library("EGL") else "disable")
 
-from tasks.registry import REGISTRY, make, register_with_gymnasium, task_names
+from foundation.lazy import lazy_exports
+from tasks.registry import REGISTRY, TaskEntry, make, register, task_names
 
-register_with_gymnasium()
+if TYPE_CHECKING:  # the name for type checkers; at run time it loads on first use (with MuJoCo)
+    from tasks.downstream.walker_task import WalkerTaskEnv
 
-__all__ = ["REGISTRY", "make", "task_names"]
+__all__ = ["REGISTRY", "TaskEntry", "WalkerTaskEnv", "make", "register", "task_names"]
+
+__getattr__, __dir__ = lazy_exports(globals(), {"WalkerTaskEnv": "tasks.downstream.walker_task"})

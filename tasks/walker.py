@@ -189,85 +189,101 @@ def build_walker() -> WalkerModel:
 
 
 def _index(model: mujoco.MjModel) -> WalkerModel:
+    """Every index the fast environments use, read once from the compiled model."""
+    names = _Names(model)
+    return WalkerModel(
+        model=model, **_joint_fields(model, names), **_body_fields(model, names), **_sensor_fields(names)
+    )
+
+
+class _Names:
+    """Name -> index look-ups on the compiled model, failing loudly on a missing name."""
+
+    def __init__(self, model: mujoco.MjModel) -> None:
+        self.model = model
+
+    def _find(self, kind: mujoco.mjtObj, name: str, what: str) -> int:
+        i = mujoco.mj_name2id(self.model, kind, name)
+        if i < 0:
+            raise RuntimeError(f"walker model has no {what} {name!r}")
+        return i
+
+    def body(self, name: str) -> int:
+        return self._find(mujoco.mjtObj.mjOBJ_BODY, name, "body")
+
+    def joint(self, name: str) -> int:
+        return self._find(mujoco.mjtObj.mjOBJ_JOINT, f"walker/{name}", "joint")
+
+    def sensor_rows(self, name: str) -> np.ndarray:
+        i = self._find(mujoco.mjtObj.mjOBJ_SENSOR, f"walker/{name}", "sensor")
+        start = int(self.model.sensor_adr[i])
+        return np.arange(start, start + int(self.model.sensor_dim[i]))
+
+    def sensors_of_type(self, kind: mujoco.mjtSensor) -> list[str]:
+        model = self.model
+        return [
+            model.sensor(s).name.removeprefix("walker/") for s in range(model.nsensor) if model.sensor_type[s] == kind
+        ]
+
+
+def _joint_fields(model: mujoco.MjModel, names: _Names) -> dict:
+    """Mocap-order and actuator-order joint addresses, ranges and the actuation scaling."""
     from dm_control.locomotion.walkers import cmu_humanoid
 
-    def body(name: str) -> int:
-        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
-        if i < 0:
-            raise RuntimeError(f"walker model has no body {name!r}")
-        return i
-
-    def joint(name: str) -> int:
-        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, f"walker/{name}")
-        if i < 0:
-            raise RuntimeError(f"walker model has no joint {name!r}")
-        return i
-
-    def sensor_rows(name: str) -> np.ndarray:
-        i = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_SENSOR, f"walker/{name}")
-        if i < 0:
-            raise RuntimeError(f"walker model has no sensor {name!r}")
-        start = int(model.sensor_adr[i])
-        return np.arange(start, start + int(model.sensor_dim[i]))
-
     mocap_names = tuple(cmu_humanoid._CMU_MOCAP_JOINTS)
-    mocap_joints = [joint(n) for n in mocap_names]
+    mocap_joints = [names.joint(n) for n in mocap_names]
     actuator_joints = [int(model.actuator_trnid[a, 0]) for a in range(model.nu)]
-    mocap_to_observable = np.array([mocap_joints.index(j) for j in actuator_joints])
     observable_range = model.jnt_range[actuator_joints].copy()
+    lower, upper = observable_range[:, 0], observable_range[:, 1]
+    return {
+        "mocap_joint_names": mocap_names,
+        "mocap_qpos": model.jnt_qposadr[mocap_joints].astype(np.intp),
+        "mocap_dof": model.jnt_dofadr[mocap_joints].astype(np.intp),
+        "observable_qpos": model.jnt_qposadr[actuator_joints].astype(np.intp),
+        "observable_dof": model.jnt_dofadr[actuator_joints].astype(np.intp),
+        "mocap_to_observable": np.array([mocap_joints.index(j) for j in actuator_joints]),
+        "joint_range": observable_range,
+        "actuation_scale": upper - lower,
+        "actuation_offset": upper + lower,
+    }
 
+
+def _body_fields(model: mujoco.MjModel, names: _Names) -> dict:
+    """Tracked bodies, end effectors, feet, and the geoms of the walker, its feet and the floor."""
     walker_bodies = [b for b in range(model.nbody) if (model.body(b).name or "").startswith("walker/")]
-    attachment = body("walker/")
-    root = body("walker/root")
-    tracking = np.array([b for b in walker_bodies if b not in (attachment, root)])
-    end_effectors = np.array([body(f"walker/{n}") for n in ("rradius", "lradius", "rfoot", "lfoot")])
-    appendages = np.append(end_effectors, body("walker/head"))
-    feet = np.array([body(f"walker/{n}") for n in ("lfoot", "ltoes", "rfoot", "rtoes")])
+    attachment, root = names.body("walker/"), names.body("walker/root")
+    end_effectors = np.array([names.body(f"walker/{n}") for n in ("rradius", "lradius", "rfoot", "lfoot")])
+    feet = np.array([names.body(f"walker/{n}") for n in ("lfoot", "ltoes", "rfoot", "rtoes")])
     walker_geoms = np.array([g for g in range(model.ngeom) if model.geom_bodyid[g] in walker_bodies])
-    foot_geoms = np.array([g for g in walker_geoms if model.geom_bodyid[g] in feet])
-    floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "groundplane")
+    return {
+        "attachment_body": attachment,
+        "root_body": root,
+        "tracking_bodies": np.array([b for b in walker_bodies if b not in (attachment, root)]),
+        "end_effector_bodies": end_effectors,
+        "appendage_bodies": np.append(end_effectors, names.body("walker/head")),
+        "foot_bodies": feet,
+        "walker_geoms": walker_geoms,
+        "foot_geoms": np.array([g for g in walker_geoms if model.geom_bodyid[g] in feet]),
+        "floor_geom": mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "groundplane"),
+    }
 
-    touch_names = [
-        model.sensor(s).name.removeprefix("walker/")
-        for s in range(model.nsensor)
-        if model.sensor_type[s] == mujoco.mjtSensor.mjSENS_TOUCH
-    ]
-    torque_names = [
-        model.sensor(s).name.removeprefix("walker/")
-        for s in range(model.nsensor)
-        if model.sensor_type[s] == mujoco.mjtSensor.mjSENS_TORQUE
-    ]
+
+def _sensor_fields(names: _Names) -> dict:
+    """Rows of each sensor group in ``sensordata``."""
 
     def as_slice(rows: np.ndarray) -> slice:
         return slice(int(rows[0]), int(rows[-1]) + 1)
 
-    lower, upper = observable_range[:, 0], observable_range[:, 1]
-    return WalkerModel(
-        model=model,
-        mocap_joint_names=mocap_names,
-        mocap_qpos=model.jnt_qposadr[mocap_joints].astype(np.intp),
-        mocap_dof=model.jnt_dofadr[mocap_joints].astype(np.intp),
-        observable_qpos=model.jnt_qposadr[actuator_joints].astype(np.intp),
-        observable_dof=model.jnt_dofadr[actuator_joints].astype(np.intp),
-        mocap_to_observable=mocap_to_observable,
-        joint_range=observable_range,
-        attachment_body=attachment,
-        root_body=root,
-        tracking_bodies=tracking,
-        end_effector_bodies=end_effectors,
-        appendage_bodies=appendages,
-        foot_bodies=feet,
-        walker_geoms=walker_geoms,
-        foot_geoms=foot_geoms,
-        floor_geom=floor,
-        sensor_velocimeter=as_slice(sensor_rows("sensor_root_veloc")),
-        sensor_gyro=as_slice(sensor_rows("sensor_root_gyro")),
-        sensor_accelerometer=as_slice(sensor_rows("sensor_root_accel")),
-        sensor_touch=np.concatenate([sensor_rows(n) for n in touch_names]),
-        sensor_torque=np.concatenate([sensor_rows(n) for n in torque_names]),
-        sensor_end_effectors=np.concatenate(
-            [sensor_rows(f"{n}_end_effector") for n in ("rradius", "lradius", "rfoot", "lfoot")]
+    end_effectors = ("rradius", "lradius", "rfoot", "lfoot")
+    return {
+        "sensor_velocimeter": as_slice(names.sensor_rows("sensor_root_veloc")),
+        "sensor_gyro": as_slice(names.sensor_rows("sensor_root_gyro")),
+        "sensor_accelerometer": as_slice(names.sensor_rows("sensor_root_accel")),
+        "sensor_touch": np.concatenate(
+            [names.sensor_rows(n) for n in names.sensors_of_type(mujoco.mjtSensor.mjSENS_TOUCH)]
         ),
-        actuation_scale=upper - lower,
-        actuation_offset=upper + lower,
-    )
+        "sensor_torque": np.concatenate(
+            [names.sensor_rows(n) for n in names.sensors_of_type(mujoco.mjtSensor.mjSENS_TORQUE)]
+        ),
+        "sensor_end_effectors": np.concatenate([names.sensor_rows(f"{n}_end_effector") for n in end_effectors]),
+    }

@@ -14,6 +14,7 @@ def test_new_task_example_trains_on_a_decoder_file(clip_library, tmp_path, capsy
     import numpy as np
     import torch
 
+    import tasks
     from hierarchy import DecoderSpec, LatentDecoder
     from tasks.observables import DECODER, PROPRIOCEPTION
 
@@ -24,6 +25,11 @@ def test_new_task_example_trains_on_a_decoder_file(clip_library, tmp_path, capsy
     decoder = LatentDecoder(spec, np.zeros(spec.observation_size), np.ones(spec.observation_size))
     path = decoder.save(tmp_path / "decoder.safetensors")
     example = runpy.run_path(str(source), run_name="example")
-    score = example["main"](["--decoder", str(path), "--steps", "64", "--n-envs", "2", "--hidden", "16"])
+    assert "face_heading" in tasks.task_names()
+    out_dir = tmp_path / "run"
+    argv = ["--decoder", str(path), "--out", str(out_dir), "--steps", "64", "--n-envs", "2", "--hidden", "16"]
+    score = example["main"](argv)  # two environments in spawned worker processes: they must find the task
     out = capsys.readouterr().out
     assert np.isfinite(score) and f"mean facing reward after 64 steps: {score:.3f}" in out
+    assert (out_dir / "policy.safetensors").is_file() and (out_dir / "face_heading.rrd").is_file()
+    tasks.REGISTRY.pop("face_heading")  # leave the registry as the other tests expect it

@@ -27,8 +27,8 @@ from distill.experts.fanout import Job
 from distill.experts.files import find_experts
 from distill.experts.policy import ExpertOutput, gaussian_log_prob, load_expert
 from foundation.atomic import atomic_path
-from foundation.provenance import library_version
 from foundation.lockstep import Lockstep
+from foundation.provenance import library_version
 from tasks.clips.snippets import parse_snippet_id
 from tasks.observables import OBSERVABLE_SETS, observation_sizes
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig

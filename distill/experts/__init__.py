@@ -1,0 +1,66 @@
+"""Snippet experts: settings, their directory (seed A.1), the frozen policy, PPO training, evaluation, fan-out."""
+
+from typing import TYPE_CHECKING
+
+from foundation.lazy import lazy_exports
+
+if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from distill.experts.config import ExpertConfig, PiecewiseLearningRate
+    from distill.experts.evaluation import EvaluationConfig, EvaluationResult, evaluate_policy
+    from distill.experts.fanout import Job, JobReport, run_jobs, summarise
+    from distill.experts.files import ExpertDir, ExpertFilesError, expert_dir_for, find_experts
+    from distill.experts.policy import ExpertOutput, ExpertPolicy, ExpertSpec, load_expert, policy_from_sb3
+    from distill.experts.training import ConfigMismatchError, TrainingResult, expert_jobs, train_expert
+
+__all__ = [
+    "ConfigMismatchError",
+    "EvaluationConfig",
+    "EvaluationResult",
+    "ExpertConfig",
+    "ExpertDir",
+    "ExpertFilesError",
+    "ExpertOutput",
+    "ExpertPolicy",
+    "ExpertSpec",
+    "Job",
+    "JobReport",
+    "PiecewiseLearningRate",
+    "TrainingResult",
+    "evaluate_policy",
+    "expert_dir_for",
+    "expert_jobs",
+    "find_experts",
+    "load_expert",
+    "policy_from_sb3",
+    "run_jobs",
+    "summarise",
+    "train_expert",
+]
+
+__getattr__, __dir__ = lazy_exports(
+    globals(),
+    {
+        "ConfigMismatchError": "distill.experts.training",
+        "EvaluationConfig": "distill.experts.evaluation",
+        "EvaluationResult": "distill.experts.evaluation",
+        "ExpertConfig": "distill.experts.config",
+        "ExpertDir": "distill.experts.files",
+        "ExpertFilesError": "distill.experts.files",
+        "ExpertOutput": "distill.experts.policy",
+        "ExpertPolicy": "distill.experts.policy",
+        "ExpertSpec": "distill.experts.policy",
+        "Job": "distill.experts.fanout",
+        "JobReport": "distill.experts.fanout",
+        "PiecewiseLearningRate": "distill.experts.config",
+        "TrainingResult": "distill.experts.training",
+        "evaluate_policy": "distill.experts.evaluation",
+        "expert_dir_for": "distill.experts.files",
+        "expert_jobs": "distill.experts.training",
+        "find_experts": "distill.experts.files",
+        "load_expert": "distill.experts.policy",
+        "policy_from_sb3": "distill.experts.policy",
+        "run_jobs": "distill.experts.fanout",
+        "summarise": "distill.experts.fanout",
+        "train_expert": "distill.experts.training",
+    },
+)

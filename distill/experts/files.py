@@ -6,8 +6,9 @@ One directory per snippet expert, named by the snippet id::
         clip_info.json                  clip_id, start_step, end_step (A.1)
         eval_rsi/model/best_model.zip   stable-baselines3 PPO (A.1)
         eval_rsi/model/vecnormalize.pkl stable-baselines3 VecNormalize (A.1)
-        eval_rsi/model/expert.json      ours: architecture, observations, normaliser, provenance
-        eval_rsi/model/expert.safetensors  ours: the same policy's weights and normaliser statistics
+        eval_rsi/model/expert.safetensors  ours: the same policy's weights, normaliser statistics and,
+                                        in the header, its description (architecture, observations,
+                                        provenance); format 1 kept the description in expert.json
         eval_rsi/evaluations.json       evaluation history during training
         config.json                     the ExpertConfig used
         checkpoint/                     resumable training state (removed once done)
@@ -15,8 +16,9 @@ One directory per snippet expert, named by the snippet id::
 
 ``best_model.zip`` and ``vecnormalize.pkl`` load with stable-baselines3's own
 ``PPO.load`` and ``VecNormalize.load``, as the seed promises; both unpickle,
-so this library's own consumers (rollouts, evaluation) read the safetensors +
-JSON sidecar instead and never execute code from a file. Experts from
+so this library's own consumers (rollouts, evaluation) read the safetensors
+sidecar instead (written like the decoder file, :mod:`foundation.described_file`)
+and never execute code from a file. Experts from
 elsewhere (MoCapAct's release) have no sidecar and can be converted with
 ``trust_pickle=True`` when their source is trusted.
 """
@@ -32,7 +34,8 @@ from foundation.atomic import write_json
 from tasks.clips.snippets import SnippetId, parse_snippet_id
 
 EXPERT_FORMAT = "mocap_hierarchy.expert"
-EXPERT_FORMAT_VERSION = 1
+EXPERT_FORMAT_VERSION = 2
+"""2: one described safetensors file; 1: ``expert.json`` beside plain safetensors (still read)."""
 
 
 class ExpertFilesError(FileNotFoundError):
@@ -70,14 +73,14 @@ class ExpertDir:
         return self.model_dir / "vecnormalize.pkl"
 
     @property
-    def sidecar_json(self) -> Path:
-        """Our pickle-free description of the policy."""
-        return self.model_dir / "expert.json"
+    def sidecar(self) -> Path:
+        """Our pickle-free policy file (weights, normaliser and description)."""
+        return self.model_dir / "expert.safetensors"
 
     @property
-    def sidecar_weights(self) -> Path:
-        """Our pickle-free weights."""
-        return self.model_dir / "expert.safetensors"
+    def legacy_description(self) -> Path:
+        """The description of format 1, beside its weights (read, never written)."""
+        return self.model_dir / "expert.json"
 
     @property
     def evaluations(self) -> Path:

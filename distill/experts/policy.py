@@ -5,7 +5,7 @@ experts are trained (observations normalised by ``VecNormalize`` and clipped,
 concatenated in sorted key order, separate tanh MLPs for the policy and the
 value, a Gaussian with fixed standard deviation), and computes batched actions,
 mean actions, log-probabilities and unnormalised values in one call. It is
-saved as ``expert.json`` + ``expert.safetensors`` (see :mod:`distill.experts.files`).
+saved as ``expert.safetensors`` with its description in the header (see :mod:`distill.experts.files`).
 """
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from safetensors.torch import load_file, save_file
+from safetensors.torch import load_file
 from torch import nn
 
 from distill.experts.files import EXPERT_FORMAT, EXPERT_FORMAT_VERSION, ExpertDir, ExpertFilesError
-from foundation.atomic import atomic_path, write_json
+from foundation.described_file import read_described, write_described
 from foundation.networks import hidden_stack
 from foundation.sb3 import sb3_policy_layout
 
@@ -60,21 +60,10 @@ class ExpertSpec:
     gae_lambda: float
     provenance: dict = field(default_factory=dict)
 
-    def to_json(self) -> dict:
-        """JSON-ready dict with the format marker."""
-        return {"format": EXPERT_FORMAT, "version": EXPERT_FORMAT_VERSION, **asdict(self)}
-
     @classmethod
-    def from_json(cls, data: dict, where: str) -> ExpertSpec:
-        """Parses :meth:`to_json` output, with errors naming the file."""
-        if data.get("format") != EXPERT_FORMAT:
-            raise ExpertFilesError(f"{where} is not a mocap-hierarchy expert description")
-        if data.get("version", 0) > EXPERT_FORMAT_VERSION:
-            raise ExpertFilesError(
-                f"{where} has format version {data['version']}; this library reads up to "
-                f"{EXPERT_FORMAT_VERSION}: upgrade mocap-hierarchy"
-            )
-        fields = {k: v for k, v in data.items() if k not in ("format", "version")}
+    def from_json(cls, fields: dict, where: str) -> ExpertSpec:
+        """Builds the spec from a file's description (format and version already checked), errors naming the file."""
+        fields = dict(fields)
         fields["hidden_layers"] = tuple(fields["hidden_layers"])
         try:
             return cls(**fields)
@@ -186,30 +175,31 @@ class ExpertPolicy(nn.Module):
 
     # Files -------------------------------------------------------------------
 
-    def save(self, expert: ExpertDir) -> None:
-        """Writes ``expert.json`` and ``expert.safetensors`` atomically."""
-        tensors = {f"net.{k}": v.detach().contiguous() for k, v in self.state_dict().items()}
+    def save(self, expert: ExpertDir) -> Path:
+        """Writes ``expert.safetensors`` (weights, normaliser, description) atomically."""
+        tensors = {f"net.{k}": v for k, v in self.state_dict().items()}
         for key in self.keys:
             tensors[f"obs_mean.{key}"] = torch.as_tensor(self._mean[key])
             tensors[f"obs_var.{key}"] = torch.as_tensor(self._var[key])
-        with atomic_path(expert.sidecar_weights) as temporary:
-            save_file(tensors, str(temporary))
-        write_json(expert.sidecar_json, self.spec.to_json())
+        path = write_described(expert.sidecar, tensors, EXPERT_FORMAT, EXPERT_FORMAT_VERSION, asdict(self.spec))
+        expert.legacy_description.unlink(missing_ok=True)  # a format-1 description would now describe nothing
+        return path
 
     @classmethod
     def load(cls, expert: ExpertDir) -> ExpertPolicy:
-        """Reads the sidecar (no code execution)."""
-        for path in (expert.sidecar_json, expert.sidecar_weights):
-            if not path.is_file():
-                raise ExpertFilesError(
-                    f"expert {expert.root.name} has no {path.name}: it was not trained by mocap-hierarchy. Convert "
-                    "it with `load_expert(..., trust_pickle=True)` (or `--trust-pickle`) if you trust its source"
-                )
-        try:
-            spec = ExpertSpec.from_json(json.loads(expert.sidecar_json.read_text()), str(expert.sidecar_json))
-            tensors = load_file(str(expert.sidecar_weights))
-        except (json.JSONDecodeError, OSError, ValueError) as error:
-            raise ExpertFilesError(f"expert {expert.root.name}: unreadable sidecar ({error})") from None
+        """Reads the sidecar (no code execution); format 1 (``expert.json`` beside the weights) too."""
+        if not expert.sidecar.is_file():
+            raise ExpertFilesError(
+                f"expert {expert.root.name} has no {expert.sidecar.name}: it was not trained by mocap-hierarchy. "
+                "Convert it with `load_expert(..., trust_pickle=True)` (or `--trust-pickle`) if you trust its source"
+            )
+        if expert.legacy_description.is_file():
+            description, tensors = _read_format_1(expert)
+        else:
+            description, tensors = read_described(
+                expert.sidecar, EXPERT_FORMAT, EXPERT_FORMAT_VERSION, "expert", error=ExpertFilesError
+            )
+        spec = ExpertSpec.from_json(description, str(expert.sidecar))
         keys = sorted(spec.observation_sizes)
         policy = cls(
             spec,
@@ -218,6 +208,21 @@ class ExpertPolicy(nn.Module):
         )
         policy.load_state_dict({k.removeprefix("net."): v for k, v in tensors.items() if k.startswith("net.")})
         return policy
+
+
+def _read_format_1(expert: ExpertDir) -> tuple[dict, dict[str, torch.Tensor]]:
+    """Format 1: the description in ``expert.json`` (with ``format``/``version``), plain safetensors weights."""
+    where = expert.legacy_description
+    try:
+        data = json.loads(where.read_text())
+        tensors = load_file(str(expert.sidecar))
+    except (json.JSONDecodeError, OSError, ValueError) as error:
+        raise ExpertFilesError(f"expert {expert.root.name}: unreadable sidecar ({error})") from None
+    if data.pop("format", None) != EXPERT_FORMAT:
+        raise ExpertFilesError(f"{where} is not a mocap-hierarchy expert description")
+    if data.pop("version", 0) != 1:
+        raise ExpertFilesError(f"{where}: expert.json belongs to format 1; this file claims another version")
+    return data, tensors
 
 
 def policy_from_sb3(model, vecnormalize, spec_fields: dict) -> ExpertPolicy:
@@ -276,7 +281,7 @@ def load_expert(root: str | Path, trust_pickle: bool = False) -> ExpertPolicy:
     """
     expert = ExpertDir(Path(root))
     expert.require_policy()
-    if expert.sidecar_json.is_file() or not trust_pickle:
+    if expert.sidecar.is_file() or not trust_pickle:
         return ExpertPolicy.load(expert)
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize

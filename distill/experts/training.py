@@ -12,7 +12,6 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
-import math
 import shutil
 import time
 from collections.abc import Callable
@@ -35,9 +34,10 @@ from distill.experts.files import ExpertDir, expert_dir_for, write_clip_info
 from distill.experts.policy import policy_from_sb3
 from foundation.atomic import write_json
 from foundation.provenance import provenance
-from foundation.sb3 import save_sb3
+from foundation.resume import SettingsMismatchError, check_same_settings
+from foundation.sb3 import PpoSettings, build_ppo, load_ppo, save_sb3
 from tasks.clips.format import list_clips
-from tasks.clips.snippets import parse_snippet_id
+from tasks.clips.snippets import SnippetId, parse_snippet_id
 from tasks.clips.sources import resolve_clip_file
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 from tasks.walker import build_walker
@@ -46,8 +46,8 @@ EXPERT_OBSERVABLES = "expert"
 _SB3_SAVE_EXCLUDE = ["learning_rate", "lr_schedule"]  # our schedule class stays out of SB3's pickles
 
 
-class ConfigMismatchError(ValueError):
-    """A checkpoint exists for different training settings."""
+ConfigMismatchError = SettingsMismatchError
+"""A checkpoint exists for different training settings."""
 
 
 @dataclass
@@ -253,6 +253,9 @@ def train_expert(
 ) -> TrainingResult:
     """Trains (or resumes, or skips) the expert of one snippet.
 
+    Reads top to bottom: settings, the finished-expert shortcut, the directory,
+    the environments, a new or resumed PPO, the training loop, the final files.
+
     Args:
         snippet: Snippet id (``CLIP-START-END``) or a whole clip id.
         out: Folder that receives the ``<snippet>/`` expert directory.
@@ -270,56 +273,88 @@ def train_expert(
     config = config or ExpertConfig()
     config.validate()
     snippet_id = parse_snippet_id(snippet)
-    clip_file = str(resolve_clip_file(clips, [snippet_id.clip_id]))
-    expert = expert_dir_for(out, snippet)
     name = str(snippet_id)
+    expert = expert_dir_for(out, snippet)
     if expert.is_done():
         summary = json.loads(expert.done.read_text())
         return TrainingResult(name, str(expert.root), summary["steps"], summary["best"], "already_done", 0.0)
 
+    clip_file = _prepare_directory(expert, snippet_id, config, clips)
+    resume_state = _check_resume(expert, config)
+    write_json(expert.config, asdict(config))
+    if config.torch_threads > 0:
+        torch.set_num_threads(config.torch_threads)
+    vec_env = _vec_env(_tracking_config(name, clip_file, config), config)
+    model, state = _resume_or_build(expert, vec_env, resume_state, config)
+
+    trainer = _Trainer(name, expert, clip_file, config, progress)
+    callback = _ExpertCallback(trainer, state)
+    try:
+        _learn(model, trainer, callback, state, resumed=resume_state is not None)
+    finally:
+        vec_env.close()
+    _finish(expert, name, model, state, callback.stop_reason, config)
+    return TrainingResult(
+        name,
+        str(expert.root),
+        int(model.num_timesteps),
+        state["best"],
+        callback.stop_reason,
+        time.perf_counter() - started,
+    )
+
+
+def _prepare_directory(expert: ExpertDir, snippet_id: SnippetId, config: ExpertConfig, clips: str | None) -> str:
+    """Creates the expert directory with its clip info and settings; returns the clip file."""
+    clip_file = str(resolve_clip_file(clips, [snippet_id.clip_id]))
     expert.root.mkdir(parents=True, exist_ok=True)
     lengths = list_clips(clip_file)
     if snippet_id.clip_id not in lengths:
         raise KeyError(f"clip {snippet_id.clip_id} is not in {clip_file}")
-    resume_state = _check_resume(expert, config)
     write_clip_info(expert.root, snippet_id, lengths[snippet_id.clip_id])
-    write_json(expert.config, asdict(config))
+    return clip_file
 
-    if config.torch_threads > 0:
-        torch.set_num_threads(config.torch_threads)
-    tracking = _tracking_config(name, clip_file, config)
+
+def _vec_env(tracking: TrackingConfig, config: ExpertConfig):
+    """``n_envs`` tracking environments, in worker processes when asked for."""
     n_envs = config.resolved_envs()
     factories: list[Callable[[], gym.Env]] = [
         functools.partial(_make_env, tracking, config.seed * 1000 + i) for i in range(n_envs)
     ]
-    vec_env = SubprocVecEnv(factories) if config.subprocess_envs and n_envs > 1 else DummyVecEnv(factories)
-    schedule = PiecewiseLearningRate(config.learning_rates)
+    return SubprocVecEnv(factories) if config.subprocess_envs and n_envs > 1 else DummyVecEnv(factories)
+
+
+def _ppo_settings(config: ExpertConfig) -> PpoSettings:
+    return PpoSettings(
+        learning_rate=PiecewiseLearningRate(config.learning_rates),
+        steps_per_env=config.steps_per_update // config.resolved_envs(),
+        minibatch_size=config.minibatch_size,
+        epochs=config.epochs,
+        gamma=config.gamma,
+        gae_lambda=config.gae_lambda,
+        clip_range=config.clip_range,
+        max_grad_norm=config.max_grad_norm,
+        hidden_layers=config.hidden_layers,
+        initial_std=config.action_std,
+        seed=config.seed,
+        device=config.device,
+    )
+
+
+def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, config: ExpertConfig):
+    """The checkpoint's PPO and callback state, or a new PPO and a fresh state."""
+    settings = _ppo_settings(config)
     if resume_state is not None:
-        venv = VecNormalize.load(str(expert.checkpoint_normaliser), vec_env)
-        venv.training = True
-        model = PPO.load(expert.checkpoint_model, env=venv, device=config.device, learning_rate=schedule)
+        model, _ = load_ppo(
+            expert.checkpoint_model,
+            expert.checkpoint_normaliser,
+            vec_env,
+            config.device,
+            learning_rate=settings.learning_rate,
+        )
         state = resume_state
     else:
-        venv = VecNormalize(vec_env, norm_obs=True, norm_reward=True, gamma=config.gamma)
-        model = PPO(
-            "MultiInputPolicy",
-            venv,
-            learning_rate=schedule,
-            n_steps=config.steps_per_update // n_envs,
-            batch_size=config.minibatch_size,
-            n_epochs=config.epochs,
-            gamma=config.gamma,
-            gae_lambda=config.gae_lambda,
-            clip_range=config.clip_range,
-            max_grad_norm=config.max_grad_norm,
-            policy_kwargs={
-                "net_arch": {"pi": list(config.hidden_layers), "vf": list(config.hidden_layers)},
-                "activation_fn": torch.nn.Tanh,
-                "log_std_init": math.log(config.action_std),
-            },
-            seed=config.seed,
-            device=config.device,
-        )
+        model = build_ppo(VecNormalize(vec_env, norm_obs=True, norm_reward=True, gamma=config.gamma), settings)
         state = {
             "evaluations": [],
             "best": None,
@@ -331,29 +366,29 @@ def train_expert(
     state["recent"] = []
     model.policy.log_std.requires_grad_(False)  # the experts' action noise is fixed (MoCapAct)
     model.set_logger(configure(str(expert.root), ["csv"]))
+    return model, state
 
-    trainer = _Trainer(name, expert, clip_file, config, progress)
-    callback = _ExpertCallback(trainer, state)
-    remaining = config.total_steps - model.num_timesteps
-    try:
-        if remaining > 0:
-            model.learn(remaining, callback=callback, reset_num_timesteps=resume_state is None)
-        if not state["evaluations"] or state["evaluations"][-1]["steps"] != model.num_timesteps:
-            trainer.evaluate(model, model.num_timesteps, state)  # every expert ends evaluated
-    finally:
-        vec_env.close()
+
+def _learn(model: PPO, trainer: _Trainer, callback: _ExpertCallback, state: dict, resumed: bool) -> None:
+    """PPO up to the budget (or early stop); every expert ends with an evaluation at its last step."""
+    remaining = trainer.config.total_steps - model.num_timesteps
+    if remaining > 0:
+        model.learn(remaining, callback=callback, reset_num_timesteps=not resumed)
+    if not state["evaluations"] or state["evaluations"][-1]["steps"] != model.num_timesteps:
+        trainer.evaluate(model, model.num_timesteps, state)
+
+
+def _finish(expert: ExpertDir, name: str, model: PPO, state: dict, stop_reason: str, config: ExpertConfig) -> None:
+    """Marks the expert done (``done.json``) and removes its checkpoint."""
     summary = {
         "snippet": name,
         "steps": int(model.num_timesteps),
         "best": state["best"],
-        "stop_reason": callback.stop_reason,
+        "stop_reason": stop_reason,
         "config": asdict(config),
     }
     write_json(expert.done, summary)
     _remove_checkpoint(expert)
-    return TrainingResult(
-        name, str(expert.root), summary["steps"], state["best"], callback.stop_reason, time.perf_counter() - started
-    )
 
 
 def _check_resume(expert: ExpertDir, config: ExpertConfig) -> dict | None:
@@ -363,13 +398,7 @@ def _check_resume(expert: ExpertDir, config: ExpertConfig) -> dict | None:
         return None
     if expert.config.is_file():
         saved = _training_fields(expert_config_from_json(json.loads(expert.config.read_text())))
-        requested = _training_fields(config)
-        differences = {k: (v, requested[k]) for k, v in saved.items() if requested[k] != v}
-        if differences:
-            raise ConfigMismatchError(
-                f"{expert.root} holds a checkpoint trained with other settings {differences} (saved, requested); "
-                "resume with the same settings, use another --out, or delete the checkpoint folder"
-            )
+        check_same_settings({"settings": saved}, _training_fields(config), str(expert.root), "expert settings")
     return json.loads(state_file.read_text())
 
 

@@ -1,0 +1,39 @@
+"""The motion GPT (seed Table 4): model with an exact key/value cache, training, motion completion."""
+
+from typing import TYPE_CHECKING
+
+from foundation.lazy import lazy_exports
+
+if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from distill.gpt.completion import CompletionConfig, CompletionController, complete_motions
+    from distill.gpt.model import GptConfig, GptFileError, GptSpec, MotionGpt, load_gpt
+    from distill.gpt.training import GptResult, train_gpt
+
+__all__ = [
+    "CompletionConfig",
+    "CompletionController",
+    "GptConfig",
+    "GptFileError",
+    "GptResult",
+    "GptSpec",
+    "MotionGpt",
+    "complete_motions",
+    "load_gpt",
+    "train_gpt",
+]
+
+__getattr__, __dir__ = lazy_exports(
+    globals(),
+    {
+        "CompletionConfig": "distill.gpt.completion",
+        "CompletionController": "distill.gpt.completion",
+        "GptConfig": "distill.gpt.model",
+        "GptFileError": "distill.gpt.model",
+        "GptResult": "distill.gpt.training",
+        "GptSpec": "distill.gpt.model",
+        "MotionGpt": "distill.gpt.model",
+        "complete_motions": "distill.gpt.completion",
+        "load_gpt": "distill.gpt.model",
+        "train_gpt": "distill.gpt.training",
+    },
+)

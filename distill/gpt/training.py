@@ -18,16 +18,20 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-
-import torch
 
 from distill.dataset.reader import RolloutDataset
 from distill.dataset.sampler import SamplerConfig, WindowDataset
 from distill.gpt.model import GptConfig, GptSpec, MotionGpt
-from distill.trainer import TrainerConfig, TrainingOutcome, distributed_from_environment, train
-from foundation.atomic import write_json
+from distill.trainer import (
+    TrainerConfig,
+    TrainingOutcome,
+    distributed_from_environment,
+    train_on_dataset,
+    write_run_summary,
+)
 from foundation.provenance import provenance
 
 GPT_FILE = "gpt.safetensors"
@@ -85,49 +89,34 @@ def train_gpt(
     trainer = trainer or default_gpt_trainer()
     sampler = dataclasses.replace(sampler or default_gpt_sampler(gpt), normalize_observations=True, actions="mean")
     out = Path(out)
-    dataset = RolloutDataset(data)
-    try:
-        sizes = dataset.require_observables(gpt.observables, "the GPT")
-        windows = WindowDataset(dataset, {"states": gpt.observables}, sampler)
+    is_main = distributed_from_environment().is_main
+
+    def groups(dataset: RolloutDataset) -> dict[str, Sequence[str]]:
+        sizes.update(dataset.require_observables(gpt.observables, "the GPT"))
+        return {"states": gpt.observables}
+
+    def build(windows: WindowDataset) -> MotionGpt:
         means, stds = windows.statistics()
         spec = GptSpec(config=asdict(gpt), observation_sizes=sizes, action_size=windows.action_size)
-        torch.manual_seed(trainer.seed)  # the initial weights follow the trainer's seed
         model = MotionGpt(spec, means["states"], stds["states"])
-        count = model.parameter_count()
-        place = distributed_from_environment()
-        if progress and place.is_main:
+        if progress and is_main:
             print(
-                f"motion GPT: {count:,} parameters ({gpt.layers} layers, {gpt.heads} heads, "
+                f"motion GPT: {model.parameter_count():,} parameters ({gpt.layers} layers, {gpt.heads} heads, "
                 f"embedding {gpt.embedding_size}, block {gpt.block_size})"
             )
-        files = [str(p.resolve()) for p in dataset.files]
-        settings = {"gpt": asdict(gpt), "sampler": asdict(sampler), "data": files}
+        return model
 
-        def batches(seed: int, batch_size: int, device):
-            return windows.batches(batch_size, seed=seed, device=device)
-
-        outcome = train(model, batches, out, trainer, settings, progress=progress, description="training GPT")
-        # Under torchrun rank 0 alone writes; a finished run keeps its file.
-        if not place.is_main or (outcome.already_finished and (out / GPT_FILE).is_file()):
-            return GptResult(out / GPT_FILE, count, outcome)
-        model.cpu().eval()
-        facts = {"dataset": files, "steps": outcome.steps, "final_loss": outcome.final_loss}
-        model.spec = dataclasses.replace(model.spec, provenance=provenance(**facts))
-        path = model.save(out / GPT_FILE)
-        write_json(
-            out / "gpt.json",
-            {
-                "gpt": asdict(gpt),
-                "trainer": asdict(trainer),
-                "sampler": asdict(sampler),
-                "data": files,
-                "parameters": count,
-                "steps": outcome.steps,
-                "resumed_from": outcome.resumed_from,
-                "final_loss": outcome.final_loss,
-                "seconds": outcome.seconds,
-            },
-        )
-        return GptResult(path, count, outcome)
-    finally:
-        dataset.close()
+    sizes: dict[str, int] = {}
+    settings = {"gpt": asdict(gpt)}
+    run = train_on_dataset(data, out, trainer, sampler, groups, build, settings, (GPT_FILE,), progress, "training GPT")
+    model = run.model
+    assert isinstance(model, MotionGpt)
+    count = model.parameter_count()
+    if not run.write:  # under torchrun rank 0 alone writes; a finished run keeps its file
+        return GptResult(out / GPT_FILE, count, run.outcome)
+    model.cpu().eval()
+    facts = {"dataset": run.data_files, "steps": run.outcome.steps, "final_loss": run.outcome.final_loss}
+    model.spec = dataclasses.replace(model.spec, provenance=provenance(**facts))
+    path = model.save(out / GPT_FILE)
+    write_run_summary(out / "gpt.json", settings, trainer, sampler, run, parameters=count)
+    return GptResult(path, count, run.outcome)

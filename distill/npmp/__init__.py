@@ -1,0 +1,41 @@
+"""The multi-clip policy (seed B.2): encoder and decoder, distillation, evaluation."""
+
+from typing import TYPE_CHECKING
+
+from foundation.lazy import lazy_exports
+
+if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from distill.npmp.evaluation import PolicyEvaluationConfig, evaluate_multi_clip, fraction_of_experts
+    from distill.npmp.model import MultiClipPrompt, NpmpConfig, NpmpPolicy, NpmpSpec, load_policy
+    from distill.npmp.training import DistillResult, default_sampler, train_npmp
+
+__all__ = [
+    "DistillResult",
+    "MultiClipPrompt",
+    "NpmpConfig",
+    "NpmpPolicy",
+    "NpmpSpec",
+    "PolicyEvaluationConfig",
+    "default_sampler",
+    "evaluate_multi_clip",
+    "fraction_of_experts",
+    "load_policy",
+    "train_npmp",
+]
+
+__getattr__, __dir__ = lazy_exports(
+    globals(),
+    {
+        "DistillResult": "distill.npmp.training",
+        "MultiClipPrompt": "distill.npmp.model",
+        "NpmpConfig": "distill.npmp.model",
+        "NpmpPolicy": "distill.npmp.model",
+        "NpmpSpec": "distill.npmp.model",
+        "PolicyEvaluationConfig": "distill.npmp.evaluation",
+        "default_sampler": "distill.npmp.training",
+        "evaluate_multi_clip": "distill.npmp.evaluation",
+        "fraction_of_experts": "distill.npmp.evaluation",
+        "load_policy": "distill.npmp.model",
+        "train_npmp": "distill.npmp.training",
+    },
+)

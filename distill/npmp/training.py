@@ -12,16 +12,14 @@ from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
-
-import torch
 
 from distill.dataset.reader import RolloutDataset
 from distill.dataset.sampler import SamplerConfig, WindowDataset
 from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec
-from distill.trainer import TrainerConfig, TrainingOutcome, distributed_from_environment, train
-from foundation.atomic import write_json
+from distill.trainer import TrainerConfig, TrainingOutcome, train_on_dataset, write_run_summary
 
 DECODER_FILE = "decoder.safetensors"
 POLICY_FILE = "policy.safetensors"
@@ -69,58 +67,44 @@ def train_npmp(
     trainer = trainer or TrainerConfig()
     sampler = dataclasses.replace(sampler or default_sampler(), normalize_observations=True, actions="mean")
     out = Path(out)
-    dataset = RolloutDataset(data)
-    try:
-        ref_steps = tuple(int(s) for s in dataset.ref_steps)
-        encoder_sizes = dataset.require_observables(npmp.encoder_observables, "the multi-clip policy's encoder")
-        decoder_sizes = dataset.require_observables(npmp.decoder_observables, "the multi-clip policy's decoder")
-        windows = WindowDataset(dataset, {"encoder": tuple(encoder_sizes), "decoder": tuple(decoder_sizes)}, sampler)
+
+    def groups(dataset: RolloutDataset) -> dict[str, Sequence[str]]:
+        sizes["encoder"] = dataset.require_observables(npmp.encoder_observables, "the multi-clip policy's encoder")
+        sizes["decoder"] = dataset.require_observables(npmp.decoder_observables, "the multi-clip policy's decoder")
+        sizes["ref_steps"] = tuple(int(s) for s in dataset.ref_steps)
+        return {"encoder": tuple(sizes["encoder"]), "decoder": tuple(sizes["decoder"])}
+
+    def build(windows: WindowDataset) -> NpmpPolicy:
         means, stds = windows.statistics()
         spec = NpmpSpec(
             config=asdict(npmp),
-            encoder_sizes=encoder_sizes,
-            decoder_sizes=decoder_sizes,
-            ref_steps=ref_steps,
+            encoder_sizes=sizes["encoder"],
+            decoder_sizes=sizes["decoder"],
+            ref_steps=sizes["ref_steps"],
             action_size=windows.action_size,
         )
-        torch.manual_seed(trainer.seed)  # the initial weights follow the trainer's seed
-        policy = NpmpPolicy(spec, means["encoder"], stds["encoder"], means["decoder"], stds["decoder"])
-        files = [str(p.resolve()) for p in dataset.files]
-        settings = {"npmp": asdict(npmp), "sampler": asdict(sampler), "data": files}
+        return NpmpPolicy(spec, means["encoder"], stds["encoder"], means["decoder"], stds["decoder"])
 
-        def batches(seed: int, batch_size: int, device):
-            return windows.batches(batch_size, seed=seed, device=device)
-
-        outcome = train(policy, batches, out, trainer, settings, progress=progress, description="distilling")
-        written = (out / DECODER_FILE).is_file() and (out / POLICY_FILE).is_file()
-        # Under torchrun rank 0 alone writes; a finished run keeps its files (and the decoder its SHA-256).
-        if not distributed_from_environment().is_main or (outcome.already_finished and written):
-            return DistillResult(out / DECODER_FILE, out / POLICY_FILE, outcome)
-        facts = {
-            "dataset": files,
-            "episodes": len(dataset.episodes),
-            "steps": outcome.steps,
-            "batch_size": trainer.batch_size,
-            "weighting": sampler.weighting,
-            "final_loss": outcome.final_loss,
-        }
-        policy.cpu().eval()
-        policy.spec = dataclasses.replace(spec, provenance=facts)
-        policy_path = policy.save(out / POLICY_FILE)
-        decoder_path = policy.export_decoder(**facts).save(out / DECODER_FILE)
-        write_json(
-            out / "distill.json",
-            {
-                "npmp": asdict(npmp),
-                "trainer": asdict(trainer),
-                "sampler": asdict(sampler),
-                "data": files,
-                "steps": outcome.steps,
-                "resumed_from": outcome.resumed_from,
-                "final_loss": outcome.final_loss,
-                "seconds": outcome.seconds,
-            },
-        )
-        return DistillResult(decoder_path, policy_path, outcome)
-    finally:
-        dataset.close()
+    sizes: dict = {}
+    settings = {"npmp": asdict(npmp)}
+    run = train_on_dataset(
+        data, out, trainer, sampler, groups, build, settings, (DECODER_FILE, POLICY_FILE), progress, "distilling"
+    )
+    if not run.write:  # under torchrun rank 0 alone writes; a finished run keeps its files (and their SHA-256)
+        return DistillResult(out / DECODER_FILE, out / POLICY_FILE, run.outcome)
+    facts = {
+        "dataset": run.data_files,
+        "episodes": run.episodes,
+        "steps": run.outcome.steps,
+        "batch_size": trainer.batch_size,
+        "weighting": sampler.weighting,
+        "final_loss": run.outcome.final_loss,
+    }
+    policy = run.model
+    assert isinstance(policy, NpmpPolicy)
+    policy.cpu().eval()
+    policy.spec = dataclasses.replace(policy.spec, provenance=facts)
+    policy_path = policy.save(out / POLICY_FILE)
+    decoder_path = policy.export_decoder(**facts).save(out / DECODER_FILE)
+    write_run_summary(out / "distill.json", settings, trainer, sampler, run)
+    return DistillResult(decoder_path, policy_path, run.outcome)

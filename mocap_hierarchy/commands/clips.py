@@ -1,4 +1,4 @@
-"""Command-line subcommands of ``tasks``: clip files and the task registry."""
+"""``mocap-hierarchy clips`` and ``tasks``: clip files, snippets, and the registered tasks."""
 
 from __future__ import annotations
 
@@ -101,7 +101,8 @@ def _split(args: argparse.Namespace) -> None:
 
 
 def _tasks(args: argparse.Namespace) -> None:
-    from tasks.registry import REGISTRY
+    from tasks.registry import entry, task_names
 
-    for entry in REGISTRY.values():
-        print(f"{entry.name:<18}{entry.gym_id:<38}{entry.description}")
+    for name in task_names():
+        task = entry(name)
+        print(f"{task.name:<18}{task.gym_id:<38}{task.description}")

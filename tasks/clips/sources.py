@@ -1,4 +1,6 @@
-"""Where clip files come from, in order:
+"""Where clip files come from.
+
+In order of preference:
 
 1. a path the caller gives (function argument or ``--clips`` on the CLI);
 2. for CMU clips: the file named by ``$MOCAP_HIERARCHY_CMU_FILE``, else the
@@ -9,7 +11,7 @@
 
 Nothing is ever downloaded.
 
-Snippet ids and splitting live in :mod:`tasks.clips.sources.snippets`.
+Snippet ids and splitting live in :mod:`tasks.clips.snippets`.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ def test_training_writes_the_seed_layout(trained_expert, snippet):
     assert trained_expert.name == snippet
     info = json.loads(expert.clip_info.read_text())
     assert info == {"clip_id": "SYN_wave", "start_step": 0, "end_step": 196}
-    for path in (expert.best_model, expert.vecnormalize, expert.sidecar_json, expert.sidecar_weights, expert.done):
+    for path in (expert.best_model, expert.vecnormalize, expert.sidecar, expert.done):
         assert path.is_file(), path
     assert not expert.checkpoint_dir.exists()  # removed once training finished
     evaluations = json.loads(expert.evaluations.read_text())
@@ -131,15 +131,40 @@ def test_foreign_expert_needs_trust_to_unpickle(trained_expert, tmp_path, snippe
 
     copy = tmp_path / snippet
     shutil.copytree(trained_expert, copy)
-    for sidecar in ("expert.json", "expert.safetensors"):
-        (copy / "eval_rsi" / "model" / sidecar).unlink()
+    (copy / "eval_rsi" / "model" / "expert.safetensors").unlink()
     with pytest.raises(ExpertFilesError, match="trust_pickle"):
         load_expert(copy)
     converted = load_expert(copy, trust_pickle=True)
     original = load_expert(trained_expert)
     observation = {k: np.ones((1, n)) for k, n in original.spec.observation_sizes.items()}
     np.testing.assert_allclose(converted.act(observation).mean_actions, original.act(observation).mean_actions)
-    assert (copy / "eval_rsi" / "model" / "expert.json").is_file()  # converted once, safe afterwards
+    assert (copy / "eval_rsi" / "model" / "expert.safetensors").is_file()  # converted once, safe afterwards
+
+
+def test_experts_written_in_format_1_still_load(trained_expert, tmp_path, snippet):
+    import shutil
+
+    from safetensors.torch import save_file
+
+    from distill.experts.files import EXPERT_FORMAT
+    from foundation.described_file import METADATA_KEY, read_described
+
+    copy = tmp_path / snippet
+    shutil.copytree(trained_expert, copy)
+    old = ExpertDir(copy)
+    description, tensors = read_described(old.sidecar, EXPERT_FORMAT, 2, "expert")
+    save_file(tensors, str(old.sidecar))  # format 1: plain tensors, the description beside them
+    old.legacy_description.write_text(json.dumps({"format": EXPERT_FORMAT, "version": 1, **description}))
+    from safetensors import safe_open
+
+    with safe_open(str(old.sidecar), framework="pt") as f:
+        assert METADATA_KEY not in (f.metadata() or {})
+    original, converted = load_expert(trained_expert), load_expert(copy)
+    observation = {k: np.full((2, n), 0.3) for k, n in original.spec.observation_sizes.items()}
+    np.testing.assert_array_equal(converted.act(observation).mean_actions, original.act(observation).mean_actions)
+    assert converted.spec == original.spec
+    converted.save(old)  # rewriting converts to the current format and drops the stale description
+    assert not old.legacy_description.exists() and load_expert(copy).spec == original.spec
 
 
 def test_automatic_environment_count_divides_the_update(monkeypatch):

@@ -41,3 +41,127 @@ def test_unknown_names_list_the_valid_ones():
         tasks.make("walk_on_moon")
     with pytest.raises(TypeError, match=r"no setting\(s\) \['speed'\]; valid settings: .*max_speed"):
         tasks.make("velocity_control", speed=2.0)
+
+
+# Tasks that plug in -----------------------------------------------------------
+
+USER_TASK = '''
+from dataclasses import dataclass
+
+import numpy as np
+
+import tasks
+from tasks.downstream.walker_task import WalkerTaskEnv
+
+
+@dataclass(frozen=True)
+class StandStillConfig:
+    max_steps: int = 40
+
+
+class StandStill(WalkerTaskEnv):
+    """One point per step on its feet."""
+
+    def __init__(self, config: StandStillConfig) -> None:
+        super().__init__({"clock": 1}, config.max_steps)
+
+    def _task_reset(self):
+        return np.zeros(2), 0.0
+
+    def _task_step(self):
+        return 1.0, False, {}
+
+    def _task_observation(self):
+        return {"clock": np.array([self.steps / 40.0])}
+
+
+def register_all():
+    tasks.register("{name}", StandStillConfig, StandStill, "stand still (a test task)")
+
+
+register_all()
+'''
+
+
+@pytest.fixture
+def user_task(tmp_path, monkeypatch):
+    """A task registered from a user's module; removed from the registries afterwards."""
+    name = "stand_still_test"
+    module = tmp_path / "my_tasks_for_test.py"
+    module.write_text(USER_TASK.replace("{name}", name))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield name, module
+    tasks.REGISTRY.pop(name, None)
+    gym.registry.pop(f"MocapHierarchy/{name.title().replace('_', '')}-v0", None)
+
+
+def test_builtin_tracking_task_tracks_the_whole_synthetic_library():
+    from tasks.clips.synthetic.library import SYNTHETIC_CLIPS
+
+    assert REGISTRY["tracking"].defaults["snippets"] == tuple(recipe.clip_id for recipe in SYNTHETIC_CLIPS)
+
+
+def test_a_registered_user_task_is_a_task_like_the_builtin_ones(clip_library, user_task, capsys):
+    import importlib
+
+    from mocap_hierarchy.cli import main
+
+    name, _ = user_task
+    importlib.import_module("my_tasks_for_test")
+    assert name in tasks.task_names()
+    env = tasks.make(name, max_steps=3)
+    env.reset(seed=0)
+    steps = 0
+    while True:
+        steps += 1
+        _, reward, terminated, truncated, _ = env.step(np.zeros(env.action_space.shape))
+        if terminated or truncated:
+            break
+    assert steps == 3 and reward == 1.0  # the override reached the config
+    assert gym.make("MocapHierarchy/StandStillTest-v0").unwrapped.observation_space["clock"].shape == (1,)
+    assert main(["tasks"]) == 0
+    assert f"{name:<18}MocapHierarchy/StandStillTest-v0" in capsys.readouterr().out
+
+
+def test_registering_checks_names_configs_and_clashes(user_task):
+    import importlib
+
+    name, _ = user_task
+    module = importlib.import_module("my_tasks_for_test")
+    module.register_all()  # the same registration again: a no-op
+    with pytest.raises(ValueError, match="is taken"):
+        tasks.register(name, module.StandStillConfig, lambda config: None)
+    with pytest.raises(ValueError, match="lower case"):
+        tasks.register("Stand Still", module.StandStillConfig, module.StandStill)
+    with pytest.raises(TypeError, match="must be a dataclass"):
+        tasks.register("stand_still_other", dict, module.StandStill)
+
+
+def test_an_installed_package_adds_tasks_through_the_entry_point_group(user_task, monkeypatch):
+    from importlib import metadata
+
+    from tasks import registry
+
+    name, _ = user_task
+    plugin = metadata.EntryPoint(name="mine", value="my_tasks_for_test:register_all", group=registry.ENTRY_POINT_GROUP)
+    monkeypatch.setattr(registry.metadata, "entry_points", lambda group: [plugin] if group == plugin.group else [])
+    monkeypatch.setattr(registry, "_plugins_loaded", False)
+    assert name not in REGISTRY
+    assert registry.entry(name).description == "stand still (a test task)"  # loaded on first look-up
+
+
+def test_tasks_from_a_file_reach_spawned_transfer_workers_eval_and_record(clip_library, user_task, tmp_path, capsys):
+    from mocap_hierarchy.cli import main
+
+    name, module = user_task
+    out = tmp_path / "run"
+    common = ["--tasks-from", str(module)]
+    ppo = "--n-envs 2 --steps-per-update 64 --minibatch-size 32 --epochs 1 --hidden-layers 16 --device cpu"
+    train = [*common, "transfer", "train", "--task", name, "--out", str(out), "--steps", "64", *ppo.split()]
+    assert main([*train, "--subprocess-envs", "true"]) == 0  # workers start with spawn: the task travels by value
+    assert main([*common, "transfer", "eval", str(out), "--episodes", "1", "--max-steps", "5"]) == 0
+    assert f"{name}: return 5.00" in capsys.readouterr().out
+    recording = tmp_path / "stand.rrd"
+    args = [*common, "record", "--task", name, "--policy", str(out / "policy.safetensors"), "--out", str(recording)]
+    assert main([*args, "--set", "max_steps=4"]) == 0
+    assert recording.is_file()

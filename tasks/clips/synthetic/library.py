@@ -20,7 +20,8 @@ from tqdm.auto import tqdm
 
 from tasks.clips.format import Clip, write_clips
 from tasks.clips.synthetic import motions
-from tasks.clips.synthetic.rig import FrameSpec, Rig
+from tasks.clips.synthetic.frames import FrameSpec
+from tasks.clips.synthetic.rig import Rig
 from tasks.walker import CONTROL_TIMESTEP, WalkerModel, build_walker
 
 GENERATOR_VERSION = 1

@@ -17,19 +17,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from tasks.clips.synthetic.rig import FootSpec, FrameSpec, root_quat
-
-STAND_HEIGHT = 1.11
-"""Pelvis height (m) of the standing pose (knees bent about 19 degrees)."""
-
-STAND_FOOT_X = -0.03
-"""Ankle x (m) relative to the pelvis when standing: centres the COM over the soles."""
-
-STAND_HALF_WIDTH = 0.11
-"""Lateral distance (m) of each ankle from the pelvis when standing."""
-
-REST_WRIST = np.array([0.09, 0.04, -0.52])
-"""Wrist offset from the shoulder of a relaxed arm (x forward, y outward, z up)."""
+from tasks.clips.synthetic.frames import (
+    REST_WRIST,
+    STAND_FOOT_X,
+    STAND_HEIGHT,
+    FootSpec,
+    FrameSpec,
+    root_quat,
+    standing_feet,
+)
 
 
 def minimum_jerk(phase: float) -> float:
@@ -61,16 +57,6 @@ def rest_wrists(forward: float = 0.0, right_forward: float | None = None) -> dic
         "l": REST_WRIST + np.array([forward, 0.0, 0.02 * abs(forward) / 0.1]),
         "r": REST_WRIST * np.array([1.0, -1.0, 1.0]) + np.array([right, 0.0, 0.02 * abs(right) / 0.1]),
     }
-
-
-def standing_feet(x: float = 0.0, y: float = 0.0, yaw: float = 0.0) -> dict[str, FootSpec]:
-    """Both feet planted in the standing stance under a pelvis at (x, y, yaw)."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    feet = {}
-    for side, sign in (("l", 1.0), ("r", -1.0)):
-        lx, ly = STAND_FOOT_X, sign * STAND_HALF_WIDTH
-        feet[side] = FootSpec(x + c * lx - s * ly, y + s * lx + c * ly, yaw)
-    return feet
 
 
 # Standing motions ----------------------------------------------------------

@@ -13,16 +13,22 @@ on the same plane, so a flat foot has all its collision geoms touching the floor
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 
+from tasks.clips.synthetic.frames import (
+    BASE_ROOT_QUAT,
+    REST_WRIST,
+    STAND_HEIGHT,
+    FootSpec,
+    FrameSpec,
+    standing_feet,
+    yaw_matrix,
+)
 from tasks.clips.synthetic.ik import BodyTarget, IKSolver
 from tasks.walker import WalkerModel
-
-BASE_ROOT_QUAT = np.array([0.5, 0.5, 0.5, 0.5])
-"""Root orientation of an upright walker facing +x (pelvis frame: y up, z forward)."""
 
 SOLE_CLEARANCE = 2e-4
 """Height (m) of a planted sole above the floor: touching, never below it."""
@@ -31,37 +37,6 @@ LEG_JOINTS = {
     side: tuple(f"{side}{n}" for n in ("femurrz", "femurry", "femurrx", "tibiarx", "footrz", "footrx")) for side in "lr"
 }
 ARM_JOINTS = {side: tuple(f"{side}{n}" for n in ("humerusrz", "humerusry", "humerusrx", "radiusrx")) for side in "lr"}
-
-
-def yaw_matrix(yaw: float) -> np.ndarray:
-    """Rotation about world z."""
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-
-
-def axis_angle_quat(axis: np.ndarray | list[float], angle: float) -> np.ndarray:
-    """Unit quaternion (w, x, y, z) of a rotation by ``angle`` about ``axis``."""
-    axis = np.asarray(axis, dtype=float)
-    axis = axis / np.linalg.norm(axis)
-    return np.concatenate([[np.cos(angle / 2)], np.sin(angle / 2) * axis])
-
-
-def quat_multiply(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product ``a * b``."""
-    out = np.zeros(4)
-    mujoco.mju_mulQuat(out, a, b)
-    return out
-
-
-def root_quat(yaw: float, pitch: float = 0.0, roll: float = 0.0) -> np.ndarray:
-    """Pelvis orientation: heading ``yaw``, then forward lean ``pitch``, then ``roll``.
-
-    Angles in radians; positive pitch leans forward, positive roll leans left.
-    """
-    q = axis_angle_quat([0.0, 0.0, 1.0], yaw)
-    q = quat_multiply(q, axis_angle_quat([0.0, 1.0, 0.0], pitch))
-    q = quat_multiply(q, axis_angle_quat([1.0, 0.0, 0.0], -roll))
-    return quat_multiply(q, BASE_ROOT_QUAT)
 
 
 @dataclass(frozen=True)
@@ -81,47 +56,6 @@ class FootFrame:
     radius: float
     centre: np.ndarray
     up: np.ndarray
-
-
-@dataclass(frozen=True)
-class FootSpec:
-    """Where one foot is: planar pose on the floor plus a lift.
-
-    Attributes:
-        x: World x of the ankle (foot body origin) of the flat foot, metres.
-        y: World y of the ankle of the flat foot, metres.
-        yaw: Heading of the foot, radians.
-        lift: Height of the toes above the floor (0 when planted), metres.
-        pitch: Heel-up rotation about the line through the toe spheres,
-            radians (0 when planted); the toes never move down, the heel rises.
-    """
-
-    x: float
-    y: float
-    yaw: float
-    lift: float = 0.0
-    pitch: float = 0.0
-
-
-@dataclass(frozen=True)
-class FrameSpec:
-    """One frame of a motion in task space.
-
-    Attributes:
-        root_position: World position of the pelvis (free joint), metres.
-        root_quat: World orientation of the pelvis, (w, x, y, z).
-        feet: Left and right foot, keyed ``"l"`` and ``"r"``.
-        wrists: Optional wrist targets relative to the shoulder (the humerus
-            body origin), in the heading frame (x forward, y left, z up), keyed
-            by side.
-        joints: Angles for other joints (spine, head, hands), by name.
-    """
-
-    root_position: np.ndarray
-    root_quat: np.ndarray
-    feet: dict[str, FootSpec]
-    wrists: dict[str, np.ndarray] = field(default_factory=dict)
-    joints: dict[str, float] = field(default_factory=dict)
 
 
 class Rig:
@@ -158,8 +92,6 @@ class Rig:
         minima, so the legs start from a deep stance and each arm starts from
         the best shoulder angles of a coarse grid.
         """
-        from tasks.clips.synthetic.motions import REST_WRIST, STAND_HEIGHT, standing_feet
-
         data = self.data
         data.qpos[:] = 0.0
         data.qpos[3:7] = BASE_ROOT_QUAT

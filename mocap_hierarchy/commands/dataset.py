@@ -1,0 +1,40 @@
+"""``mocap-hierarchy rollout``: roll experts out into the rollout dataset."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from distill.dataset.writer import RolloutConfig
+from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
+
+
+def add_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Registers ``rollout``."""
+    rollout = subparsers.add_parser("rollout", help="roll experts out into the dataset (one HDF5 file per clip)")
+    rollout.add_argument("--experts", type=Path, required=True, help="folder of expert directories")
+    rollout.add_argument("--out", type=Path, required=True, help="dataset folder")
+    rollout.add_argument("--clips", default=None)
+    rollout.add_argument("--workers", type=int, default=1, help="clips rolled out in parallel processes")
+    rollout.add_argument("--ray", default=None, metavar="ADDRESS", help="run the clips on a Ray cluster")
+    add_dataclass_arguments(rollout, RolloutConfig)
+    rollout.set_defaults(handler=_rollout)
+
+
+def _rollout(args: argparse.Namespace) -> None:
+    from distill.dataset.writer import rollout_clip, rollout_jobs
+    from distill.experts.fanout import run_jobs, summarise
+
+    config = dataclass_from_args(RolloutConfig, args)
+    jobs = rollout_jobs(args.experts, args.out, config, args.clips)
+    if args.workers <= 1 and args.ray is None:
+        for job in jobs:
+            if not job.done:
+                rollout_clip(**job.kwargs, progress=True)
+        print(f"{len(jobs)} clip files in {args.out} ({sum(j.done for j in jobs)} were already complete)")
+        return
+    reports = run_jobs(jobs, workers=args.workers, ray_address=args.ray)
+    print(summarise(reports))
+    if any(r.status == "failed" for r in reports):
+        sys.exit(1)

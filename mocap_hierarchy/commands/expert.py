@@ -1,0 +1,108 @@
+"""``mocap-hierarchy expert``: train one or many snippet experts, evaluate them."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
+
+from distill.experts.config import ExpertConfig
+from distill.experts.evaluation import EvaluationConfig
+from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
+
+
+def add_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Registers ``expert train``, ``expert train-many`` and ``expert eval``."""
+    expert = subparsers.add_parser("expert", help="clip-snippet experts: train, evaluate, train many")
+    commands = expert.add_subparsers(dest="expert_command", required=True, metavar="COMMAND")
+
+    train = commands.add_parser("train", help="train one snippet expert with PPO (resumes if interrupted)")
+    train.add_argument("--snippet", required=True, help="snippet id CLIP-START-END (or a clip id)")
+    train.add_argument("--out", type=Path, required=True, help="folder receiving <snippet>/ (seed A.1 layout)")
+    train.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    train.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")
+    add_dataclass_arguments(train, ExpertConfig)
+    train.set_defaults(handler=_train)
+
+    many = commands.add_parser("train-many", help="train many experts as independent jobs (process pool or Ray)")
+    many.add_argument("--snippets", type=Path, required=True, help="text file: one snippet id per line")
+    many.add_argument("--out", type=Path, required=True)
+    many.add_argument("--clips", default=None)
+    many.add_argument("--steps", type=int, default=None)
+    many.add_argument("--workers", type=int, default=0, help="local worker processes (0: one per core)")
+    many.add_argument("--ray", default=None, metavar="ADDRESS", help="run on a Ray cluster ('local' starts one)")
+    many.add_argument("--max-attempts", type=int, default=3, help="attempts per job before it is reported failed")
+    add_dataclass_arguments(many, ExpertConfig, exclude=("n_envs", "subprocess_envs", "torch_threads"))
+    many.set_defaults(handler=_train_many)
+
+    evaluate = commands.add_parser("eval", help="evaluate experts: normalised reward and length")
+    evaluate.add_argument("experts", type=Path, help="an expert directory or a folder of them")
+    evaluate.add_argument("--clips", default=None)
+    evaluate.add_argument("--deterministic", action="store_true", help="no action noise (same as --action-noise 0)")
+    evaluate.add_argument("--trust-pickle", action="store_true", help="convert experts without our sidecar")
+    evaluate.add_argument("--json", type=Path, default=None, help="write the results here")
+    add_dataclass_arguments(evaluate, EvaluationConfig)
+    evaluate.set_defaults(handler=_evaluate)
+
+
+def _expert_config(args: argparse.Namespace, **fixed) -> ExpertConfig:
+    config = dataclass_from_args(ExpertConfig, args, **fixed)
+    if args.steps is not None:
+        config = dataclasses.replace(config, total_steps=args.steps)
+    return config
+
+
+def _train(args: argparse.Namespace) -> None:
+    from distill.experts.training import train_expert
+
+    result = train_expert(args.snippet, args.out, _expert_config(args), clips=args.clips)
+    best = result.best or {}
+    print(
+        f"{result.snippet}: {result.stop_reason} after {result.steps} steps; best normalised reward "
+        f"{best.get('normalized_reward', float('nan')):.3f}, length {best.get('normalized_length', float('nan')):.3f}"
+        f" -> {result.directory}"
+    )
+
+
+def _train_many(args: argparse.Namespace) -> None:
+    from distill.experts.fanout import run_jobs, summarise
+    from distill.experts.training import expert_jobs
+
+    if not args.snippets.is_file():
+        raise FileNotFoundError(f"snippet list {args.snippets} does not exist (one snippet id per line)")
+    snippets = [line.strip() for line in args.snippets.read_text().splitlines() if line.strip()]
+    jobs = expert_jobs(snippets, args.out, _expert_config(args), args.clips)
+    reports = run_jobs(jobs, workers=args.workers, max_attempts=args.max_attempts, ray_address=args.ray)
+    print(summarise(reports))
+    if any(r.status == "failed" for r in reports):
+        sys.exit(1)
+
+
+def _evaluate(args: argparse.Namespace) -> None:
+    from distill.experts.evaluation import evaluate_policy
+    from distill.experts.files import find_experts
+    from distill.experts.policy import load_expert
+
+    config = dataclass_from_args(EvaluationConfig, args)
+    if args.deterministic:
+        config = dataclasses.replace(config, action_noise=0.0)
+    experts = find_experts(args.experts)  # also accepts a single expert directory
+    results = []
+    print(
+        f"{'snippet':<28}{'norm. reward':>14}{'norm. length':>14}{'episodes':>10}   init={config.init} "
+        f"noise={config.action_noise}"
+    )
+    for snippet, expert in experts.items():
+        policy = load_expert(expert.root, trust_pickle=args.trust_pickle)
+        result = evaluate_policy(policy, snippet, config, clips=args.clips, progress=True)
+        results.append(result.to_json())
+        print(f"{snippet:<28}{result.normalized_reward:>14.3f}{result.normalized_length:>14.3f}{config.episodes:>10}")
+    if args.json:
+        from foundation.atomic import write_json
+
+        write_json(args.json, {"config": dataclasses.asdict(config), "results": results})
+        print(f"results written to {args.json}")
+    else:
+        print(json.dumps({r["snippet"]: [r["normalized_reward"], r["normalized_length"]] for r in results}))

@@ -1,0 +1,54 @@
+"""``mocap-hierarchy record`` and ``view``: rerun recordings (and videos) of any policy on any task."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_commands(subparsers: argparse._SubParsersAction) -> None:
+    """Registers ``record`` and ``view``."""
+    record = subparsers.add_parser("record", help="record a rollout of any policy on any task into a rerun .rrd file")
+    record.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
+    record.add_argument(
+        "--policy", required=True, help="random, an expert directory, or a policy/decoder/GPT .safetensors file"
+    )
+    record.add_argument("--out", type=Path, required=True, help="the .rrd file to write")
+    record.add_argument("--episodes", type=int, default=1)
+    record.add_argument("--seed", type=int, default=0)
+    record.add_argument("--prompt", default=None, help="expert directory prompting a GPT (motion_completion)")
+    record.add_argument(
+        "--video", type=Path, default=None, help="also write an mp4 (needs MUJOCO_GL=egl or osmesa and the video extra)"
+    )
+    record.add_argument("--set", nargs="+", default=[], metavar="FIELD=VALUE", help="task settings, e.g. max_steps=200")
+    record.set_defaults(handler=_record)
+
+    view = subparsers.add_parser("view", help="open a .rrd recording in the rerun viewer (or say how to)")
+    view.add_argument("file", type=Path)
+    view.set_defaults(handler=_view)
+
+
+def _record(args: argparse.Namespace) -> None:
+    from mocap_hierarchy.commands.transfer import parse_settings
+    from mocap_hierarchy.record import record
+
+    result = record(
+        args.task,
+        args.policy,
+        args.out,
+        args.episodes,
+        args.seed,
+        parse_settings(args.set),
+        prompt=args.prompt,
+        video=args.video,
+    )
+    print(f"recorded {result['episodes']} episode(s), {result['steps']} steps: {result['path']}")
+    if "video" in result:
+        print(f"video: {result['video']}")
+    print(f"open it with: mocap-hierarchy view {result['path']}")
+
+
+def _view(args: argparse.Namespace) -> None:
+    from mocap_hierarchy.record import view
+
+    print(view(args.file))
