@@ -5,6 +5,7 @@ SB3 is imported inside the functions, so importing this module stays cheap.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -81,6 +82,16 @@ class PpoSettings:
     target_kl: float | None = None
     seed: int | None = 0
     device: str = "auto"
+
+    @classmethod
+    def from_config(cls, config: Any, **given: Any) -> PpoSettings:
+        """Settings from a job's config dataclass: every field of the same name, plus ``given`` (which wins)."""
+        shared = {
+            f.name: getattr(config, f.name)
+            for f in dataclasses.fields(cls)
+            if f.name not in given and hasattr(config, f.name)
+        }
+        return cls(**shared, **given)
 
 
 def build_ppo(env: Any, settings: PpoSettings) -> Any:

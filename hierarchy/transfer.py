@@ -194,21 +194,8 @@ def _vec_env(source: TaskSource, decoder: LatentDecoder | None, config: Transfer
 
 
 def _ppo_settings(config: TransferConfig, with_decoder: bool) -> PpoSettings:
-    return PpoSettings(
-        learning_rate=config.learning_rate,
-        steps_per_env=config.steps_per_update // config.n_envs,
-        minibatch_size=config.minibatch_size,
-        epochs=config.epochs,
-        gamma=config.gamma,
-        gae_lambda=config.gae_lambda,
-        clip_range=config.clip_range,
-        max_grad_norm=config.max_grad_norm,
-        hidden_layers=config.hidden_layers,
-        initial_std=config.std_for(with_decoder),
-        entropy_coefficient=config.entropy_coefficient,
-        target_kl=config.target_kl,
-        seed=config.seed,
-        device=config.device,
+    return PpoSettings.from_config(
+        config, steps_per_env=config.steps_per_update // config.n_envs, initial_std=config.std_for(with_decoder)
     )
 
 

@@ -325,19 +325,11 @@ def _vec_env(tracking: TrackingConfig, config: ExpertConfig):
 
 
 def _ppo_settings(config: ExpertConfig) -> PpoSettings:
-    return PpoSettings(
+    return PpoSettings.from_config(
+        config,
         learning_rate=PiecewiseLearningRate(config.learning_rates),
         steps_per_env=config.steps_per_update // config.resolved_envs(),
-        minibatch_size=config.minibatch_size,
-        epochs=config.epochs,
-        gamma=config.gamma,
-        gae_lambda=config.gae_lambda,
-        clip_range=config.clip_range,
-        max_grad_norm=config.max_grad_norm,
-        hidden_layers=config.hidden_layers,
         initial_std=config.action_std,
-        seed=config.seed,
-        device=config.device,
     )
 
 

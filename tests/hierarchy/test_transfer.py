@@ -121,3 +121,23 @@ def test_resume_refuses_another_decoder_or_setting(tmp_path):
     with pytest.raises(ValueError, match="task, decoder or PPO settings"):
         train_transfer("velocity_control", out, decoder_file, dataclasses.replace(TINY, learning_rate=1e-3),
                        {"max_steps": 30}, progress=False)  # fmt: skip
+    with pytest.raises(ValueError, match=r"config\.learning_rate: saved 5e-05, requested 0\.001"):
+        train_transfer("velocity_control", out, decoder_file, dataclasses.replace(TINY, learning_rate=1e-3),
+                       {"max_steps": 30}, progress=False)  # fmt: skip
+
+
+def short_velocity_control():
+    """A user's own environment factory (here: a built-in task with short episodes)."""
+    return tasks.make("velocity_control", max_steps=30)
+
+
+def test_train_and_evaluate_on_an_env_factory(tmp_path):
+    decoder_file = small_decoder().save(tmp_path / "decoder.safetensors")
+    policy_file = train_transfer(short_velocity_control, tmp_path / "run", decoder_file, TINY, progress=False)
+    assert load_task_policy(policy_file).spec.task == "short_velocity_control"
+    with pytest.raises(ValueError, match="not a registered task here"):
+        evaluate_transfer(policy_file, episodes=1)
+    summary = evaluate_transfer(policy_file, episodes=2, env_factory=short_velocity_control)
+    assert summary.episodes == 2 and all(0 < n <= 30 for n in summary.lengths)
+    with pytest.raises(ValueError, match="overrides apply to registered tasks"):
+        train_transfer(short_velocity_control, tmp_path / "other", decoder_file, TINY, {"max_steps": 5})
