@@ -17,6 +17,9 @@ calls :func:`register` in the ``mocap_hierarchy.tasks`` entry-point group::
     [project.entry-points."mocap_hierarchy.tasks"]
     my_tasks = "my_package.tasks:register_all"
 
+Plugins load on the first look-up of a name the registry does not know, or on
+:func:`task_names`; their Gymnasium ids exist from then on.
+
 Built-in entries name their classes as ``"module:Name"`` strings, resolved on
 first use, so importing the registry does not load MuJoCo.
 """
