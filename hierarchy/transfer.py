@@ -1,4 +1,4 @@
-"""High-level training on any registered task, with or without a frozen decoder (seed B.3).
+"""High-level training on any registered task or env factory, with or without a frozen decoder (seed B.3).
 
 ``train_transfer("velocity_control", out, decoder="decoder.safetensors")``
 trains stable-baselines3 PPO in the decoder's latent space (initial standard
@@ -132,13 +132,11 @@ class TaskSource:
         name: The registered name (recorded in the policy file), or a label for a factory.
         overrides: Config fields changed from the registered task's defaults.
         factory: Builds one raw environment; picklable, so worker processes can call it.
-        registered: Whether ``name`` is a registry name (``transfer eval`` and ``record`` rebuild it by name).
     """
 
     name: str
     overrides: dict[str, Any]
     factory: Callable[[], gym.Env]
-    registered: bool
 
     @classmethod
     def of(
@@ -153,22 +151,17 @@ class TaskSource:
         if isinstance(task, str):
             entry = registry.entry(task)
             entry.config(**overrides)  # unknown settings fail here, not in a worker process
-            return cls(task, overrides, functools.partial(entry.make, **overrides), True)
+            return cls(task, overrides, functools.partial(entry.make, **overrides))
         if overrides:
             raise ValueError("task overrides apply to registered tasks; build them into your env factory instead")
         label = name or getattr(task, "__name__", type(task).__name__)
-        return cls(label, {}, task, False)
+        return cls(label, {}, task)
 
 
 def make_task_env(
-    task: str | TaskSource,
-    overrides: dict[str, Any] | None,
-    decoder: LatentDecoder | None,
-    max_latent: float = 3.0,
-    steps_per_latent: int = 1,
+    source: TaskSource, decoder: LatentDecoder | None, max_latent: float = 3.0, steps_per_latent: int = 1
 ):
-    """One environment of ``task``, wrapped in the latent action space when a decoder is given."""
-    source = task if isinstance(task, TaskSource) else TaskSource.of(task, overrides)
+    """One environment of ``source``, wrapped in the latent action space when a decoder is given."""
     env = source.factory()
     if decoder is None:
         return env
@@ -411,7 +404,6 @@ def evaluate_transfer(
     facts = spec.decoder or {}
     env = make_task_env(
         _evaluation_source(spec.task, spec.task_overrides, max_steps, env_factory),
-        None,
         decoder,
         facts.get("max_latent", 3.0),
         facts.get("steps_per_latent", 1),

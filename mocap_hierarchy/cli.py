@@ -8,6 +8,8 @@ import importlib.util
 import sys
 from pathlib import Path
 
+import cloudpickle
+
 from mocap_hierarchy import __version__
 from mocap_hierarchy.commands import COMMAND_MODULES
 
@@ -55,8 +57,6 @@ def load_task_modules(sources: list[str]) -> None:
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
         spec.loader.exec_module(module)
-        import cloudpickle
-
         cloudpickle.register_pickle_by_value(module)
 
 

@@ -123,7 +123,7 @@ def _multi_clip(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
 
 
 def _task_policy(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
-    from hierarchy.transfer import load_policy_and_decoder, make_task_env
+    from hierarchy.transfer import TaskSource, load_policy_and_decoder, make_task_env
 
     policy, decoder = load_policy_and_decoder(path)
     spec = policy.spec
@@ -131,8 +131,7 @@ def _task_policy(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
         raise ValueError(f"{path} was trained on task {spec.task!r}; record it with --task {spec.task}")
     facts = spec.decoder or {}
     env = make_task_env(
-        spec.task,
-        {**spec.task_overrides, **overrides},
+        TaskSource.of(spec.task, {**spec.task_overrides, **overrides}),
         decoder,
         facts.get("max_latent", 3.0),
         facts.get("steps_per_latent", 1),
