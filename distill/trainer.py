@@ -26,7 +26,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -357,8 +357,8 @@ def train_on_dataset(
     out: str | os.PathLike,
     trainer: TrainerConfig,
     sampler: Any,
-    groups: Callable[[Any], dict[str, Sequence[str]]],
-    build_model: Callable[[Any], nn.Module],
+    groups: Callable[[Any], dict[str, dict[str, int]]],
+    build_model: Callable[[Any, Any, dict[str, dict[str, int]]], nn.Module],
     settings: dict[str, Any],
     outputs: tuple[str, ...],
     progress: bool = True,
@@ -374,10 +374,11 @@ def train_on_dataset(
         out: Output folder; a rerun resumes the checkpoint there.
         trainer: Loop settings.
         sampler: The window sampler's :class:`~distill.dataset.sampler.SamplerConfig`.
-        groups: ``groups(dataset)`` names the observables of each window group (and
-            checks the dataset has them).
-        build_model: ``build_model(windows)`` makes the untrained model (``windows`` is the
-            :class:`~distill.dataset.sampler.WindowDataset`, with statistics and action size).
+        groups: ``groups(dataset)`` gives each window group's observables with their sizes
+            (``dataset.require_observables`` checks the dataset has them).
+        build_model: ``build_model(dataset, windows, sizes)`` makes the untrained model (``windows`` is
+            the :class:`~distill.dataset.sampler.WindowDataset`, with statistics and action size;
+            ``sizes`` is what ``groups`` returned).
         settings: The model's own settings (``{"npmp": ...}``), part of the resume check.
         outputs: The final files; a finished run that has them all keeps them.
         progress: Show a progress bar.
@@ -389,9 +390,10 @@ def train_on_dataset(
     out = Path(out)
     dataset = RolloutDataset(data)
     try:
-        windows = WindowDataset(dataset, groups(dataset), sampler)
+        sizes = groups(dataset)
+        windows = WindowDataset(dataset, {group: tuple(keys) for group, keys in sizes.items()}, sampler)
         torch.manual_seed(trainer.seed)  # the initial weights follow the trainer's seed
-        model = build_model(windows)
+        model = build_model(dataset, windows, sizes)
         files = [str(p.resolve()) for p in dataset.files]
         resume = {**settings, "sampler": asdict(sampler), "data": files}
 

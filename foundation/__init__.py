@@ -17,36 +17,42 @@ modules that build networks or read model files, and only when they are used):
 
 from typing import TYPE_CHECKING
 
-from foundation.lazy import lazy_exports  # the only eager import: itself light
+from foundation.lazy import lazy_exports  # the one eager import (standard library only)
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
     from foundation.atomic import atomic_path, write_json
     from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
     from foundation.described_file import read_described, write_described
     from foundation.fingerprints import file_sha256, settings_fingerprint
-    from foundation.lazy import lazy_exports  # the only eager import: itself light
     from foundation.lockstep import Lockstep, Transition
     from foundation.networks import ACTIVATIONS, hidden_stack, mlp
     from foundation.provenance import library_version, provenance
-    from foundation.sb3 import save_sb3, sb3_policy_layout
+    from foundation.resume import SettingsMismatchError, check_same_settings, settings_record
+    from foundation.sb3 import PpoSettings, build_ppo, load_ppo, save_sb3, sb3_policy_layout
 
 __all__ = [
     "ACTIVATIONS",
     "Lockstep",
+    "PpoSettings",
+    "SettingsMismatchError",
     "Transition",
     "add_dataclass_arguments",
     "atomic_path",
+    "build_ppo",
+    "check_same_settings",
     "dataclass_from_args",
     "file_sha256",
     "hidden_stack",
     "lazy_exports",
     "library_version",
+    "load_ppo",
     "mlp",
     "provenance",
     "read_described",
     "save_sb3",
     "sb3_policy_layout",
     "settings_fingerprint",
+    "settings_record",
     "write_described",
     "write_json",
 ]
@@ -56,20 +62,25 @@ __getattr__, __dir__ = lazy_exports(
     {
         "ACTIVATIONS": "foundation.networks",
         "Lockstep": "foundation.lockstep",
+        "PpoSettings": "foundation.sb3",
+        "SettingsMismatchError": "foundation.resume",
         "Transition": "foundation.lockstep",
         "add_dataclass_arguments": "foundation.config_cli",
         "atomic_path": "foundation.atomic",
+        "build_ppo": "foundation.sb3",
+        "check_same_settings": "foundation.resume",
         "dataclass_from_args": "foundation.config_cli",
         "file_sha256": "foundation.fingerprints",
         "hidden_stack": "foundation.networks",
-        "lazy_exports": "foundation.lazy",
         "library_version": "foundation.provenance",
+        "load_ppo": "foundation.sb3",
         "mlp": "foundation.networks",
         "provenance": "foundation.provenance",
         "read_described": "foundation.described_file",
         "save_sb3": "foundation.sb3",
         "sb3_policy_layout": "foundation.sb3",
         "settings_fingerprint": "foundation.fingerprints",
+        "settings_record": "foundation.resume",
         "write_described": "foundation.described_file",
         "write_json": "foundation.atomic",
     },

@@ -124,8 +124,8 @@ def build_ppo(env: Any, settings: PpoSettings) -> Any:
     )
 
 
-def load_ppo(model_path: Path, normaliser_path: Path, venv: Any, device: str, **custom: Any) -> tuple[Any, Any]:
-    """Resumes a run from its own :func:`save_sb3` files: ``(PPO, VecNormalize around venv)``.
+def load_ppo(model_path: Path, normaliser_path: Path, venv: Any, device: str, **custom: Any) -> Any:
+    """Resumes a run from its own :func:`save_sb3` files: the PPO, on the loaded ``VecNormalize`` around ``venv``.
 
     Args:
         model_path: The saved model (``.zip``).
@@ -139,5 +139,4 @@ def load_ppo(model_path: Path, normaliser_path: Path, venv: Any, device: str, **
 
     normaliser = VecNormalize.load(str(normaliser_path), venv)
     normaliser.training = True
-    model = PPO.load(str(model_path), env=normaliser, device=device, **custom)
-    return model, normaliser
+    return PPO.load(str(model_path), env=normaliser, device=device, **custom)

@@ -261,7 +261,7 @@ def _resume_or_build(checkpoint: Path, venv, config: TransferConfig, with_decode
     model_file, normaliser_file = checkpoint / "model.zip", checkpoint / "vecnormalize.pkl"
     if model_file.is_file() and normaliser_file.is_file():
         assert venv.venv is not None
-        model, _ = load_ppo(model_file, normaliser_file, venv.venv, config.device)
+        model = load_ppo(model_file, normaliser_file, venv.venv, config.device)
         print(f"resuming {out} from step {model.num_timesteps}")
         return model
     return build_ppo(venv, _ppo_settings(config, with_decoder))

@@ -209,7 +209,7 @@ def _load_plugins() -> None:
     for plugin in metadata.entry_points(group=ENTRY_POINT_GROUP):
         try:
             plugin.load()()
-        except Exception as error:  # one broken plugin must not hide the other tasks
+        except Exception as error:  # name the broken plugin: its own traceback rarely says it is one
             raise RuntimeError(
                 f"the task plugin {plugin.name!r} ({plugin.value}) failed to register its tasks: {error}"
             ) from error

@@ -337,7 +337,7 @@ def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, conf
     """The checkpoint's PPO and callback state, or a new PPO and a fresh state."""
     settings = _ppo_settings(config)
     if resume_state is not None:
-        model, _ = load_ppo(
+        model = load_ppo(
             expert.checkpoint_model,
             expert.checkpoint_normaliser,
             vec_env,

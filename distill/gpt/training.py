@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -91,13 +90,12 @@ def train_gpt(
     out = Path(out)
     is_main = distributed_from_environment().is_main
 
-    def groups(dataset: RolloutDataset) -> dict[str, Sequence[str]]:
-        sizes.update(dataset.require_observables(gpt.observables, "the GPT"))
-        return {"states": gpt.observables}
+    def groups(dataset: RolloutDataset) -> dict[str, dict[str, int]]:
+        return {"states": dataset.require_observables(gpt.observables, "the GPT")}
 
-    def build(windows: WindowDataset) -> MotionGpt:
+    def build(dataset: RolloutDataset, windows: WindowDataset, sizes: dict[str, dict[str, int]]) -> MotionGpt:
         means, stds = windows.statistics()
-        spec = GptSpec(config=asdict(gpt), observation_sizes=sizes, action_size=windows.action_size)
+        spec = GptSpec(config=asdict(gpt), observation_sizes=sizes["states"], action_size=windows.action_size)
         model = MotionGpt(spec, means["states"], stds["states"])
         if progress and is_main:
             print(
@@ -106,7 +104,6 @@ def train_gpt(
             )
         return model
 
-    sizes: dict[str, int] = {}
     settings = {"gpt": asdict(gpt)}
     run = train_on_dataset(data, out, trainer, sampler, groups, build, settings, (GPT_FILE,), progress, "training GPT")
     model = run.model

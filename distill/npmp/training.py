@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -68,24 +67,23 @@ def train_npmp(
     sampler = dataclasses.replace(sampler or default_sampler(), normalize_observations=True, actions="mean")
     out = Path(out)
 
-    def groups(dataset: RolloutDataset) -> dict[str, Sequence[str]]:
-        sizes["encoder"] = dataset.require_observables(npmp.encoder_observables, "the multi-clip policy's encoder")
-        sizes["decoder"] = dataset.require_observables(npmp.decoder_observables, "the multi-clip policy's decoder")
-        sizes["ref_steps"] = tuple(int(s) for s in dataset.ref_steps)
-        return {"encoder": tuple(sizes["encoder"]), "decoder": tuple(sizes["decoder"])}
+    def groups(dataset: RolloutDataset) -> dict[str, dict[str, int]]:
+        return {
+            "encoder": dataset.require_observables(npmp.encoder_observables, "the multi-clip policy's encoder"),
+            "decoder": dataset.require_observables(npmp.decoder_observables, "the multi-clip policy's decoder"),
+        }
 
-    def build(windows: WindowDataset) -> NpmpPolicy:
+    def build(dataset: RolloutDataset, windows: WindowDataset, sizes: dict[str, dict[str, int]]) -> NpmpPolicy:
         means, stds = windows.statistics()
         spec = NpmpSpec(
             config=asdict(npmp),
             encoder_sizes=sizes["encoder"],
             decoder_sizes=sizes["decoder"],
-            ref_steps=sizes["ref_steps"],
+            ref_steps=tuple(int(s) for s in dataset.ref_steps),
             action_size=windows.action_size,
         )
         return NpmpPolicy(spec, means["encoder"], stds["encoder"], means["decoder"], stds["decoder"])
 
-    sizes: dict = {}
     settings = {"npmp": asdict(npmp)}
     run = train_on_dataset(
         data, out, trainer, sampler, groups, build, settings, (DECODER_FILE, POLICY_FILE), progress, "distilling"
