@@ -16,7 +16,8 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from distill.dataset.sampler import SamplerConfig
     from distill.dataset.writer import RolloutConfig, rollout_experts
     from distill.experts.config import ExpertConfig
-    from distill.experts.policy import ExpertPolicy, load_expert
+    from distill.experts.loading import load_expert
+    from distill.experts.policy import ExpertPolicy
     from distill.experts.training import train_expert
     from distill.gpt.completion import complete_motions
     from distill.gpt.model import GptConfig, MotionGpt, load_gpt
@@ -62,7 +63,7 @@ __getattr__, __dir__ = lazy_exports(
         "TrainerConfig": "distill.trainer",
         "TrainingOutcome": "distill.trainer",
         "complete_motions": "distill.gpt.completion",
-        "load_expert": "distill.experts.policy",
+        "load_expert": "distill.experts.loading",
         "load_gpt": "distill.gpt.model",
         "load_policy": "distill.npmp.model",
         "rollout_experts": "distill.dataset.writer",

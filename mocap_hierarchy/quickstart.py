@@ -153,7 +153,7 @@ def _experts(folder: Path, library: str, config: QuickstartConfig) -> list[dict]
     from distill.experts.evaluation import EvaluationConfig, evaluate_policy
     from distill.experts.fanout import run_jobs, summarise
     from distill.experts.files import expert_dir_for
-    from distill.experts.policy import load_expert
+    from distill.experts.loading import load_expert
     from distill.experts.training import expert_jobs
 
     steps = max(2048, int(config.expert_steps * config.scale) // 2048 * 2048)

@@ -106,7 +106,7 @@ def _single(prompt, env: gym.Env) -> Rollout:
 
 
 def _expert(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
-    from distill.experts.policy import load_expert
+    from distill.experts.loading import load_expert
     from distill.gpt.completion import ExpertPrompt
 
     _require_task(task, TRACKING_TASKS, "an expert")
@@ -140,7 +140,7 @@ def _task_policy(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
 
 
 def _gpt(task: str, path: Path, overrides: dict[str, Any], prompt: str | None) -> Rollout:
-    from distill.experts.policy import load_expert
+    from distill.experts.loading import load_expert
     from distill.gpt.completion import CompletionController, ExpertPrompt
     from distill.gpt.model import load_gpt
 

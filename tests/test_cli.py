@@ -20,6 +20,16 @@ def test_list_and_snippets_of_the_synthetic_library(clip_library, capsys):
     assert capsys.readouterr().out.split() == ["SYN_walk_slow-0-182", "SYN_walk_slow-149-331", "SYN_walk_slow-298-480"]
 
 
+def test_cmu_snippets_come_from_mocapact_list_without_the_clip_file(capsys):
+    assert main(["clips", "snippets", "--cmu"]) == 0
+    ids = capsys.readouterr().out.split()
+    assert len(ids) == len(set(ids)) == 2589 and "CMU_091_02-149-331" in ids
+    assert main(["clips", "snippets", "--cmu", "CMU_009_12"]) == 0
+    assert capsys.readouterr().out.split() == ["CMU_009_12-0-198", "CMU_009_12-165-363", "CMU_009_12-330-529"]
+    with pytest.raises(SystemExit, match="no clip"):
+        main(["clips", "snippets", "--cmu", "CMU_999_01"])
+
+
 def test_write_synthetic_subset(tmp_path, capsys):
     out = tmp_path / "two.h5"
     assert main(["clips", "write-synthetic", "--out", str(out), "--clip", "SYN_stand", "--clip", "SYN_wave"]) == 0

@@ -234,28 +234,51 @@ class RolloutDataset:
         return out
 
     def statistics(self) -> Statistics:
-        """Statistics pooled over files, weighted by each file's count."""
-        totals: dict[str, np.ndarray] = {}
+        """Statistics pooled over files (proprioception per observation row, actions per action).
+
+        Each file's stored means and variances are turned back into sums and pooled; action
+        statistics stored over observation rows (MoCapAct's files, our version 2) are rescaled
+        to the number of actions, counted from the file (``action_count``, else the episode lengths).
+        """
+        sums: dict[str, np.ndarray] = {}
         squares: dict[str, np.ndarray] = {}
         counts: dict[str, float] = {}
-        for number in range(len(self.files)):
+        for number, layout in enumerate(self.layouts):
             where = str(self.files[number])
             stats = schema.group_at(self.file(number), schema.STATS, where)
             rows = float(schema.dataset_at(stats, "count", where)[()])
-            has_actions = schema.ACTION_COUNT in stats
-            actions = float(schema.dataset_at(stats, schema.ACTION_COUNT, where)[()]) if has_actions else rows
-            for name, count in (("proprio", rows), ("act", actions), ("mean_act", actions)):
+            actions = self._action_count(number, stats)
+            per_row = schema.actions_per_row_statistics(layout.version)
+            for name, divisor, count in (
+                ("proprio", rows, rows),
+                ("act", rows if per_row else actions, actions),
+                ("mean_act", rows if per_row else actions, actions),
+            ):
                 mean = np.asarray(schema.dataset_at(stats, f"{name}_mean", where)[...], dtype=np.float64)
                 var = np.asarray(schema.dataset_at(stats, f"{name}_var", where)[...], dtype=np.float64)
-                totals[name] = totals.get(name, 0.0) + count * mean
-                squares[name] = squares.get(name, 0.0) + count * (var + mean**2)
+                sums[name] = sums.get(name, 0.0) + divisor * mean
+                squares[name] = squares.get(name, 0.0) + divisor * (var + mean**2)
                 counts[name] = counts.get(name, 0.0) + count
         pooled = {}
         for name in ("proprio", "act", "mean_act"):
-            mean = totals[name] / counts[name]
+            mean = sums[name] / counts[name]
             pooled[f"{name}_mean"] = mean
             pooled[f"{name}_var"] = np.clip(squares[name] / counts[name] - mean**2, 0.0, None)
         return Statistics(count=int(counts["proprio"]), **pooled)
+
+    def _action_count(self, number: int, stats: h5py.Group) -> float:
+        """Actions in one file: ``stats/action_count`` (ours), else the sum of its episode lengths (MoCapAct's)."""
+        where = str(self.files[number])
+        if schema.ACTION_COUNT in stats:
+            return float(schema.dataset_at(stats, schema.ACTION_COUNT, where)[()])
+        f = self.file(number)
+        return float(
+            sum(
+                np.sum(schema.dataset_at(f, f"{snippet}/{group}/{schema.EPISODE_LENGTHS}", where)[...])
+                for snippet in self.layouts[number].snippets
+                for group in (schema.START_METRICS, schema.RSI_METRICS)
+            )
+        )
 
     def close(self) -> None:
         """Closes the open files."""

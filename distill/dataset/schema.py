@@ -8,9 +8,9 @@ both import this module, so the layout exists in one place::
     ref_steps                           (k,) int64: reference look-ahead (1..5)
     observable_indices/walker/<name>    (size,) int64: columns of the observation vector
     stats/proprio_mean, proprio_var     (D,)   over every observation row of the file
-    stats/act_mean, act_var             (56,)  over sampled actions
-    stats/mean_act_mean, mean_act_var   (56,)  over mean actions
-    stats/count                         ()     number of observation rows
+    stats/act_mean, act_var             (56,)  sampled actions, MoCapAct's formulas: sums divided by count
+    stats/mean_act_mean, mean_act_var   (56,)  mean actions, the same way
+    stats/count                         ()     number of observation rows (one more per episode than actions)
     stats/action_count                  ()     number of actions (ours; MoCapAct's files lack it)
     <snippet id>/                       e.g. SYN_walk_slow-0-182
         early_termination               (S+R,) bool: the episode failed (error > 0.3)
@@ -23,7 +23,13 @@ both import this module, so the layout exists in one place::
             rewards, values, advantages (T,) float32 (GAE with the expert's gamma and lambda)
 
 Group and dataset names are MoCapAct's, so its released files read with the
-same code; they lack the schema attribute and ``log_probs``.
+same code; they lack the schema attribute and ``log_probs``. MoCapAct's reader
+(``ExpertDataset``) also needs ``dataset_metrics.npz`` beside the files
+(:mod:`distill.dataset.metrics` writes it).
+
+Schema versions: 2 stores the action statistics as MoCapAct does (divided by
+the observation rows, so they equal MoCapAct's); version 1 divided them by the
+number of actions. The reader knows both (:func:`actions_per_row_statistics`).
 """
 
 from __future__ import annotations
@@ -35,7 +41,9 @@ import h5py
 import numpy as np
 
 SCHEMA_ATTRIBUTE = "mocap_hierarchy_rollouts"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
+READABLE_VERSIONS = (0, 1, 2)
+"""0: MoCapAct's own files (no schema attribute); 1 and 2: ours."""
 FILE_SUFFIX = ".hdf5"
 
 N_RSI = "n_rsi_rollouts"
@@ -65,6 +73,11 @@ EPISODE_DATASETS = (OBSERVATIONS, ACTIONS, MEAN_ACTIONS, REWARDS, VALUES, ADVANT
 """Per-episode datasets every file (ours or MoCapAct's) has."""
 
 SNIPPET_GROUP = re.compile(r"^[A-Za-z0-9_]+-\d+-\d+$")
+
+
+def actions_per_row_statistics(version: int) -> bool:
+    """Whether a file's ``act_*`` statistics divide by observation rows (MoCapAct's and version 2) or by actions (1)."""
+    return version != 1
 
 
 class DatasetError(ValueError):

@@ -23,9 +23,11 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from distill.dataset import schema
+from distill.dataset.metrics import write_dataset_metrics
 from distill.experts.fanout import Job
 from distill.experts.files import find_experts
-from distill.experts.policy import ExpertOutput, gaussian_log_prob, load_expert
+from distill.experts.loading import load_expert
+from distill.experts.policy import ExpertOutput, gaussian_log_prob
 from foundation.atomic import atomic_path
 from foundation.lockstep import Lockstep
 from foundation.provenance import library_version
@@ -287,14 +289,14 @@ def write_rollout_file(
                 metrics[schema.NORM_EPISODE_RETURNS] = np.array([e.normalized_return for e in part], dtype=np.float64)
                 metrics[schema.NORM_EPISODE_LENGTHS] = np.array([e.normalized_length for e in part], dtype=np.float64)
         stats = f.create_group(schema.STATS)
-        for name, total, squares, count in (
-            ("proprio", sums["obs"], sums["obs2"], rows),
-            ("act", sums["act"], sums["act2"], actions),
-            ("mean_act", sums["mean"], sums["mean2"], actions),
-        ):
-            mean = total / max(count, 1)
+        for name, total, squares in (
+            ("proprio", sums["obs"], sums["obs2"]),
+            ("act", sums["act"], sums["act2"]),
+            ("mean_act", sums["mean"], sums["mean2"]),
+        ):  # MoCapAct's formulas: every sum over the observation rows (schema.actions_per_row_statistics)
+            mean = total / max(rows, 1)
             stats[f"{name}_mean"] = mean.astype(np.float32)
-            stats[f"{name}_var"] = np.clip(squares / max(count, 1) - mean**2, 0.0, None).astype(np.float32)
+            stats[f"{name}_var"] = np.clip(squares / max(rows, 1) - mean**2, 0.0, None).astype(np.float32)
         stats["count"] = np.int64(rows)
         stats[schema.ACTION_COUNT] = np.int64(actions)
     return path
@@ -308,7 +310,7 @@ def is_complete(path: Path, snippets: list[str], n_start: int, n_rsi: int) -> bo
         with h5py.File(path, "r") as f:
             layout = schema.validate(f, str(path))
             return (
-                layout.version == schema.SCHEMA_VERSION
+                layout.version >= 1  # ours, of any version this library writes or wrote
                 and set(snippets) <= set(layout.snippets)
                 and (layout.n_start, layout.n_rsi) == (n_start, n_rsi)
             )
@@ -406,9 +408,14 @@ def rollout_experts(
     config: RolloutConfig | None = None,
     clips: str | None = None,
 ) -> list[Path]:
-    """Rolls out every expert under ``experts_dir``, one file per clip, skipping complete files."""
+    """Rolls out every expert under ``experts_dir``, one file per clip, skipping complete files.
+
+    Then writes ``dataset_metrics.npz`` over every file in ``out`` (for MoCapAct's reader).
+    """
     config = config or RolloutConfig()
-    return [
+    files = [
         rollout_clip(clip, dict(experts), out, config, clips, progress=True)
         for clip, experts in experts_by_clip(experts_dir).items()
     ]
+    write_dataset_metrics(out)
+    return files

@@ -9,7 +9,9 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from distill.experts.evaluation import EvaluationConfig, EvaluationResult, evaluate_policy
     from distill.experts.fanout import Job, JobReport, run_jobs, summarise
     from distill.experts.files import ExpertDir, ExpertFilesError, expert_dir_for, find_experts
-    from distill.experts.policy import ExpertOutput, ExpertPolicy, ExpertSpec, load_expert, policy_from_sb3
+    from distill.experts.loading import load_expert
+    from distill.experts.policy import ExpertOutput, ExpertPolicy, ExpertSpec, policy_from_sb3
+    from distill.experts.sb3_import import convert_sb3_expert
     from distill.experts.training import ConfigMismatchError, TrainingResult, expert_jobs, train_expert
 
 __all__ = [
@@ -26,6 +28,7 @@ __all__ = [
     "JobReport",
     "PiecewiseLearningRate",
     "TrainingResult",
+    "convert_sb3_expert",
     "evaluate_policy",
     "expert_dir_for",
     "expert_jobs",
@@ -53,11 +56,12 @@ __getattr__, __dir__ = lazy_exports(
         "JobReport": "distill.experts.fanout",
         "PiecewiseLearningRate": "distill.experts.config",
         "TrainingResult": "distill.experts.training",
+        "convert_sb3_expert": "distill.experts.sb3_import",
         "evaluate_policy": "distill.experts.evaluation",
         "expert_dir_for": "distill.experts.files",
         "expert_jobs": "distill.experts.training",
         "find_experts": "distill.experts.files",
-        "load_expert": "distill.experts.policy",
+        "load_expert": "distill.experts.loading",
         "policy_from_sb3": "distill.experts.policy",
         "run_jobs": "distill.experts.fanout",
         "summarise": "distill.experts.fanout",

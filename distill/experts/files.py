@@ -42,15 +42,26 @@ class ExpertFilesError(FileNotFoundError):
     """An expert directory is missing files or holds unreadable ones."""
 
 
+EVALUATIONS = ("eval_rsi", "eval_start")
+"""Where an expert directory keeps a best policy: the best from random starts (used by default), or
+from the snippet's start (MoCapAct's ``clip_expert/train.py`` writes both)."""
+
+
 @dataclass(frozen=True)
 class ExpertDir:
     """Paths of one expert directory (nothing is read on construction).
 
     Args:
         root: The ``<CLIP>-<start>-<end>`` directory.
+        evaluation: Which best policy the model paths name: ``eval_rsi`` or ``eval_start``.
     """
 
     root: Path
+    evaluation: str = "eval_rsi"
+
+    def __post_init__(self) -> None:
+        if self.evaluation not in EVALUATIONS:
+            raise ValueError(f"evaluation must be one of {EVALUATIONS}, got {self.evaluation!r}")
 
     @property
     def clip_info(self) -> Path:
@@ -59,8 +70,8 @@ class ExpertDir:
 
     @property
     def model_dir(self) -> Path:
-        """``eval_rsi/model``."""
-        return self.root / "eval_rsi" / "model"
+        """``eval_rsi/model`` (or ``eval_start/model``)."""
+        return self.root / self.evaluation / "model"
 
     @property
     def best_model(self) -> Path:
@@ -136,6 +147,12 @@ class ExpertDir:
         if not self.root.is_dir():
             raise ExpertFilesError(f"expert directory {self.root} does not exist")
         for path in self.policy_files:
+            other = self.root / "eval_start" / "model"
+            if not path.is_file() and path != self.clip_info and self.evaluation == "eval_rsi" and other.is_dir():
+                raise ExpertFilesError(
+                    f"expert {self.root.name}: {path.relative_to(self.root)} is missing, but eval_start/model "
+                    "exists: load that policy with evaluation='eval_start' (`--evaluation eval_start`)"
+                )
             if not path.is_file():
                 raise ExpertFilesError(
                     f"expert {self.root.name}: {path.relative_to(self.root)} is missing; an expert directory needs "

@@ -10,14 +10,13 @@ The checkpoint also pickles arbitrary Python objects (the gym observation
 space, classes, ``RunningMeanStd`` statistics). Nothing from the file is ever
 executed: it is read with ``torch.load(..., weights_only=True)``; numpy's array
 reconstruction globals map to numpy itself (they only rebuild arrays), and
-every other global the file names maps to an inert stub class that merely
+every other global the file names maps to an inert stub class (:mod:`foundation.inert_pickle`) that merely
 records the arguments and state it is given. The observation statistics are
 then read out of the stubs' recorded state.
 """
 
 from __future__ import annotations
 
-import importlib
 import os
 import zipfile
 from collections.abc import Callable, Mapping, Sequence
@@ -29,6 +28,7 @@ import torch
 from torch import nn
 
 from foundation.fingerprints import file_sha256
+from foundation.inert_pickle import InertStub, numpy_globals, stub_for, stub_state
 from foundation.networks import ACTIVATIONS
 from foundation.provenance import provenance
 from hierarchy.decoder import DecoderFileError, DecoderSpec, LatentDecoder, decoder_network
@@ -54,81 +54,13 @@ class MocapActImportError(DecoderFileError):
 # Safe unpickling ---------------------------------------------------------------------------------
 
 
-class InertStub:
-    """Stand-in for a class or function a checkpoint names: records, never runs anything.
-
-    Each global gets its own subclass (:func:`_stub_for`), whose ``stub_of``
-    names the original. Calling it (pickle ``REDUCE``) or creating it (pickle
-    ``NEWOBJ``) yields an empty instance; pickle ``BUILD``
-    hands it the object's state, which :func:`stub_state` reads back.
-    """
-
-    stub_of: str = ""
-    recorded_state: Any
-
-    def __new__(cls, *args: Any, **kwargs: Any) -> InertStub:
-        """An empty instance, whatever pickle's ``NEWOBJ`` or ``REDUCE`` passes (the arguments are dropped)."""
-        instance = super().__new__(cls)
-        instance.recorded_state = None
-        return instance
-
-    def __init__(self, *args: Any, **kwargs: Any) -> None:
-        pass
-
-    def __setstate__(self, state: Any) -> None:
-        self.recorded_state = state
-
-    def __repr__(self) -> str:
-        return f"<inert stand-in for {self.stub_of}>"
-
-
-def _stub_for(full_name: str) -> type[InertStub]:
-    """A fresh :class:`InertStub` subclass standing in for ``full_name``."""
-    module, _, name = full_name.rpartition(".")
-    return type(name or full_name, (InertStub,), {"stub_of": full_name, "__module__": module or "builtins"})
-
-
-def stub_state(value: Any) -> dict[str, Any] | None:
-    """The attributes an object would have had: its ``__dict__`` state (plus slots), if it is a dict.
-
-    Accepts a stub (reads the state pickle gave it), a plain mapping (returned
-    as a dict) or anything else (``None``).
-    """
-    if isinstance(value, Mapping):
-        return dict(value)
-    if not isinstance(value, InertStub):
-        return None
-    state = value.recorded_state
-    slots: Any = None
-    if isinstance(state, tuple) and len(state) == 2:
-        state, slots = state
-    merged: dict[str, Any] = {}
-    for part in (state, slots):
-        if isinstance(part, Mapping):
-            merged.update({str(k): v for k, v in part.items()})
-    return merged if (isinstance(state, Mapping) or isinstance(slots, Mapping)) else None
-
-
-def _numpy_globals() -> dict[str, Any]:
-    """The real numpy objects array and scalar pickles name (they only rebuild arrays)."""
-    multiarray = importlib.import_module("numpy._core.multiarray")
-    found: dict[str, Any] = {"numpy.ndarray": np.ndarray, "numpy.dtype": np.dtype}
-    for package in ("numpy.core", "numpy._core"):
-        found[f"{package}.multiarray._reconstruct"] = multiarray._reconstruct
-        found[f"{package}.multiarray.scalar"] = multiarray.scalar
-    for name, value in vars(np.dtypes).items():
-        if isinstance(value, type) and issubclass(value, np.dtype):
-            found[f"numpy.dtypes.{name}"] = value
-    return found
-
-
 _Allowed = Callable[..., Any] | tuple[Callable[..., Any], str]
 """An entry of ``torch.serialization.safe_globals``: a callable, or one with the pickled name it stands for."""
 
 
 def _safe_globals(path: Path) -> list[_Allowed]:
     """Allowlist for ``torch.load(weights_only=True)``: real numpy reconstruction, stubs for the rest."""
-    numpy_globals = _numpy_globals()
+    real_globals = numpy_globals()
     if not zipfile.is_zipfile(path):
         raise MocapActImportError(
             f"{path} is not a PyTorch checkpoint written by torch.save (not a zip archive); "
@@ -141,8 +73,8 @@ def _safe_globals(path: Path) -> list[_Allowed]:
             f"{path} is not a PyTorch checkpoint torch can scan safely ({_first_line(error)}); "
             "expected MoCapAct's multi-clip policy (a Lightning .ckpt file)"
         ) from None
-    allowed: list[_Allowed] = [(value, name) for name, value in numpy_globals.items()]
-    allowed += [(_stub_for(name), name) for name in sorted(set(names)) if name not in numpy_globals]
+    allowed: list[_Allowed] = [(value, name) for name, value in real_globals.items()]
+    allowed += [(stub_for(name), name) for name in sorted(set(names)) if name not in real_globals]
     return allowed
 
 

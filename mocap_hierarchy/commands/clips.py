@@ -7,7 +7,7 @@ import json
 from pathlib import Path
 
 from tasks.clips.format import list_clips
-from tasks.clips.snippets import snippets_of_clip, split_snippets
+from tasks.clips.snippets import mocapact_snippets, snippets_of_clip, split_snippets
 from tasks.clips.sources import cmu_file_help, find_cmu_file, resolve_clip_file, synthetic_library_path
 
 
@@ -32,7 +32,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     snippets = commands.add_parser("snippets", help="print the snippet ids of clips (one per line)")
     snippets.add_argument("clip_ids", nargs="*", help="clips to split (default: all in the file)")
     snippets.add_argument("--clips", type=Path, default=None, help="clip file (default: the synthetic library)")
-    snippets.add_argument("--cmu", action="store_true", help="use the CMU 2020 file (never downloaded)")
+    snippets.add_argument(
+        "--cmu", action="store_true", help="print MoCapAct's ids of the CMU 2020 clips (shipped; no clip file needed)"
+    )
     snippets.set_defaults(handler=_snippets)
 
     split = commands.add_parser("split", help="split a clip length into snippets (seed B.1.1)")
@@ -84,6 +86,9 @@ def _list(args: argparse.Namespace) -> None:
 
 
 def _snippets(args: argparse.Namespace) -> None:
+    if args.cmu:
+        _mocapact_snippets(args.clip_ids)
+        return
     path = _clip_file(args)
     clips = list_clips(path)
     wanted = args.clip_ids or list(clips)
@@ -92,6 +97,19 @@ def _snippets(args: argparse.Namespace) -> None:
         raise SystemExit(f"{path} has no clip(s) {missing}; see `mocap-hierarchy clips list`")
     for clip_id in wanted:
         for snippet in snippets_of_clip(clip_id, clips[clip_id]):
+            print(snippet)
+
+
+def _mocapact_snippets(clip_ids: list[str]) -> None:
+    listed = mocapact_snippets()
+    missing = [c for c in clip_ids if c not in listed]
+    if missing:
+        raise SystemExit(
+            f"MoCapAct's snippet list has no clip(s) {missing}; `mocap-hierarchy clips snippets --cmu` lists all "
+            f"{len(listed)} clips it covers"
+        )
+    for clip_id in clip_ids or list(listed):
+        for snippet in listed[clip_id]:
             print(snippet)
 
 

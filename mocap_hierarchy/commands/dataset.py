@@ -23,6 +23,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _rollout(args: argparse.Namespace) -> None:
+    from distill.dataset.metrics import write_dataset_metrics
     from distill.dataset.writer import rollout_clip, rollout_jobs
     from distill.experts.fanout import run_jobs, summarise
 
@@ -33,8 +34,10 @@ def _rollout(args: argparse.Namespace) -> None:
             if not job.done:
                 rollout_clip(**job.kwargs, progress=True)
         print(f"{len(jobs)} clip files in {args.out} ({sum(j.done for j in jobs)} were already complete)")
+        print(f"MoCapAct's dataset metrics: {write_dataset_metrics(args.out)}")
         return
     reports = run_jobs(jobs, workers=args.workers, ray_address=args.ray)
     print(summarise(reports))
     if any(r.status == "failed" for r in reports):
         sys.exit(1)
+    print(f"MoCapAct's dataset metrics: {write_dataset_metrics(args.out)}")

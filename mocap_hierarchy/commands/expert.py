@@ -10,12 +10,13 @@ from pathlib import Path
 
 from distill.experts.config import ExpertConfig
 from distill.experts.evaluation import EvaluationConfig
+from distill.experts.files import EVALUATIONS
 from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
 
 
 def add_commands(subparsers: argparse._SubParsersAction) -> None:
-    """Registers ``expert train``, ``expert train-many`` and ``expert eval``."""
-    expert = subparsers.add_parser("expert", help="clip-snippet experts: train, evaluate, train many")
+    """Registers ``expert train``, ``expert train-many``, ``expert eval`` and ``expert convert``."""
+    expert = subparsers.add_parser("expert", help="clip-snippet experts: train, evaluate, train many, convert")
     commands = expert.add_subparsers(dest="expert_command", required=True, metavar="COMMAND")
 
     train = commands.add_parser("train", help="train one snippet expert with PPO (resumes if interrupted)")
@@ -42,9 +43,19 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     evaluate.add_argument("--clips", default=None)
     evaluate.add_argument("--deterministic", action="store_true", help="no action noise (same as --action-noise 0)")
     evaluate.add_argument("--trust-pickle", action="store_true", help="convert experts without our sidecar")
+    evaluate.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to use")
     evaluate.add_argument("--json", type=Path, default=None, help="write the results here")
     add_dataclass_arguments(evaluate, EvaluationConfig)
     evaluate.set_defaults(handler=_evaluate)
+
+    convert = commands.add_parser(
+        "convert",
+        help="convert stable-baselines3 experts (MoCapAct's too) into our pickle-free files; no code from them runs",
+    )
+    convert.add_argument("experts", type=Path, help="an expert directory or a folder of them (any depth)")
+    convert.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to convert")
+    convert.add_argument("--force", action="store_true", help="convert again where our file already exists")
+    convert.set_defaults(handler=_convert)
 
 
 def _expert_config(args: argparse.Namespace, **fixed) -> ExpertConfig:
@@ -83,7 +94,7 @@ def _train_many(args: argparse.Namespace) -> None:
 def _evaluate(args: argparse.Namespace) -> None:
     from distill.experts.evaluation import evaluate_policy
     from distill.experts.files import find_experts
-    from distill.experts.policy import load_expert
+    from distill.experts.loading import load_expert
 
     config = dataclass_from_args(EvaluationConfig, args)
     if args.deterministic:
@@ -95,7 +106,7 @@ def _evaluate(args: argparse.Namespace) -> None:
         f"noise={config.action_noise}"
     )
     for snippet, expert in experts.items():
-        policy = load_expert(expert.root, trust_pickle=args.trust_pickle)
+        policy = load_expert(expert.root, trust_pickle=args.trust_pickle, evaluation=args.evaluation)
         result = evaluate_policy(policy, snippet, config, clips=args.clips, progress=True)
         results.append(result.to_json())
         print(f"{snippet:<28}{result.normalized_reward:>14.3f}{result.normalized_length:>14.3f}{config.episodes:>10}")
@@ -106,3 +117,32 @@ def _evaluate(args: argparse.Namespace) -> None:
         print(f"results written to {args.json}")
     else:
         print(json.dumps({r["snippet"]: [r["normalized_reward"], r["normalized_length"]] for r in results}))
+
+
+def _convert(args: argparse.Namespace) -> None:
+    from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
+    from distill.experts.sb3_import import convert_sb3_expert
+
+    experts = find_experts(args.experts)
+    failed: dict[str, str] = {}
+    converted = kept = 0
+    for snippet, found in experts.items():
+        expert = ExpertDir(found.root, args.evaluation)
+        if expert.sidecar.is_file() and not args.force:
+            kept += 1
+            continue
+        try:
+            policy = convert_sb3_expert(expert)
+        except ExpertFilesError as error:
+            failed[snippet] = str(error)
+            continue
+        policy.save(expert)
+        converted += 1
+        spec = policy.spec
+        size = sum(spec.observation_sizes.values())
+        print(f"{snippet}: {size} observation values, hidden {list(spec.hidden_layers)} -> {expert.sidecar}")
+    print(f"converted {converted}, already converted {kept}, failed {len(failed)} (of {len(experts)} experts)")
+    for snippet, reason in failed.items():
+        print(f"  {snippet}: {reason}", file=sys.stderr)
+    if failed:
+        sys.exit(1)

@@ -97,7 +97,7 @@ def _prompts(args: argparse.Namespace) -> dict:
         return {snippet: (lambda rows, p=policy: MultiClipPrompt(p, rows)) for snippet in args.snippets}
 
     from distill.experts.files import find_experts
-    from distill.experts.policy import load_expert
+    from distill.experts.loading import load_expert
 
     experts = find_experts(args.experts)
     if not experts:

@@ -10,13 +10,17 @@ clip id means the whole clip.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
+from importlib import resources
 
 from tasks.clips.format import validate_clip_id
 
 MAX_SNIPPET_LENGTH = 210
 SNIPPET_OVERLAP = 33
+MOCAPACT_SNIPPET_FILE = "all_snippets.txt"
+"""MoCapAct's snippet list, package data of :mod:`tasks.clips.mocapact`."""
 
 
 @dataclass(frozen=True, order=True)
@@ -81,16 +85,18 @@ def parse_snippet_id(text: str) -> SnippetId:
 def split_snippets(
     clip_length: int, max_len: int = MAX_SNIPPET_LENGTH, overlap: int = SNIPPET_OVERLAP
 ) -> list[tuple[int, int]]:
-    """Cuts a clip into uniformly sized, overlapping snippets (seed B.1.1).
+    """Cuts a clip into equally long, overlapping snippets (seed B.1.1, MoCapAct's rule).
 
     Clips up to ``max_len`` steps stay whole. Longer clips are cut into the
-    fewest snippets that fit, consecutive ones sharing ``overlap`` steps;
-    lengths differ by at most one step (the last snippets take the rounding
-    remainder). A 529-step clip gives ``(0, 198), (165, 363), (330, 529)``.
+    fewest snippets that fit, consecutive ones sharing ``overlap`` steps. Every
+    snippet gets the same length, rounded down, and the last one takes the
+    whole rounding remainder (up to one step fewer than the number of
+    snippets), as in MoCapAct's published snippet list. A 529-step clip gives
+    ``(0, 198), (165, 363), (330, 529)``; a 482-step clip ``(0, 182), (149, 331), (298, 482)``.
 
     Args:
         clip_length: Number of steps in the clip.
-        max_len: Longest allowed snippet.
+        max_len: Longest allowed snippet before the remainder.
         overlap: Steps shared by consecutive snippets.
 
     Returns:
@@ -103,14 +109,29 @@ def split_snippets(
     if clip_length <= max_len:
         return [(0, clip_length)]
     count = math.ceil((clip_length - overlap) / (max_len - overlap))
-    covered = clip_length + (count - 1) * overlap  # total length of all snippets
-    base, extra = divmod(covered, count)
-    lengths = [base] * (count - extra) + [base + 1] * extra
-    snippets, start = [], 0
-    for length in lengths:
-        snippets.append((start, start + length))
-        start += length - overlap
+    length = (clip_length + (count - 1) * overlap) // count  # total length of all snippets, shared equally
+    stride = length - overlap
+    snippets = [(i * stride, i * stride + length) for i in range(count)]
+    snippets[-1] = (snippets[-1][0], clip_length)
     return snippets
+
+
+@functools.cache
+def mocapact_snippets() -> dict[str, tuple[SnippetId, ...]]:
+    """MoCapAct's snippets of the CMU 2020 clips, by clip id, in clip order (2589 over 836 clips).
+
+    Read from the package data ``tasks/clips/mocapact/all_snippets.txt`` (MoCapAct's
+    ``clip_splits/all_snippets.txt``, MIT licence, see the NOTICE beside it). It is
+    the source of truth for these clips: 806 of them follow :func:`split_snippets`,
+    the other 30 are cut irregularly, and experts and datasets are named by these ids.
+    """
+    text = resources.files("tasks.clips.mocapact").joinpath(MOCAPACT_SNIPPET_FILE).read_text()
+    by_clip: dict[str, list[SnippetId]] = {}
+    for line in text.splitlines():
+        if line.strip():
+            snippet = parse_snippet_id(line)
+            by_clip.setdefault(snippet.clip_id, []).append(snippet)
+    return {clip_id: tuple(sorted(snippets)) for clip_id, snippets in by_clip.items()}
 
 
 def is_get_up_clip(clip_id: str) -> bool:
@@ -121,7 +142,22 @@ def is_get_up_clip(clip_id: str) -> bool:
 
 
 def snippets_of_clip(clip_id: str, clip_length: int) -> list[SnippetId]:
-    """The snippets a clip is trained as: whole for Get Up clips, else :func:`split_snippets`."""
+    """The snippets a clip is trained as.
+
+    MoCapAct's ids for the CMU clips it lists (:func:`mocapact_snippets`); for
+    other clips, the whole clip for dm_control's Get Up clips, else :func:`split_snippets`.
+
+    Raises:
+        ValueError: A listed CMU clip whose length is not the one MoCapAct cut (a different clip file).
+    """
+    listed = mocapact_snippets().get(clip_id)
+    if listed is not None:
+        if listed[-1].end != clip_length:
+            raise ValueError(
+                f"{clip_id} has {clip_length} steps here but MoCapAct's snippets end at step {listed[-1].end}: "
+                "this clip file is not the CMU 2020 file MoCapAct used"
+            )
+        return list(listed)
     if is_get_up_clip(clip_id):
         return [SnippetId(clip_id, 0, clip_length)]
     return [SnippetId(clip_id, s, e) for s, e in split_snippets(clip_length)]

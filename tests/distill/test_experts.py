@@ -8,7 +8,7 @@ from stable_baselines3 import PPO
 
 from distill.experts.config import ExpertConfig, PiecewiseLearningRate
 from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
-from distill.experts.policy import load_expert
+from distill.experts.loading import load_expert
 from distill.experts.training import ConfigMismatchError, _Trainer, keep_training, train_expert
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 

@@ -73,7 +73,7 @@ def test_bad_settings_are_refused():
 
 
 def test_expert_prompt_makes_residual_actions_absolute(trained_expert, clip_library):
-    from distill.experts.policy import load_expert
+    from distill.experts.loading import load_expert
     from tasks.downstream.motion_completion import MotionCompletionConfig, MotionCompletionEnv
 
     expert = load_expert(trained_expert)

@@ -13,7 +13,7 @@ from tasks.observables import DECODER
 
 def test_file_follows_the_seed_layout(rollout_dir):
     with h5py.File(rollout_dir / "SYN_wave.hdf5") as f:
-        assert f.attrs[schema.SCHEMA_ATTRIBUTE] == 1
+        assert f.attrs[schema.SCHEMA_ATTRIBUTE] == 2
         assert f["n_start_rollouts"][()] == 2 and f["n_rsi_rollouts"][()] == 3
         assert list(f["ref_steps"][...]) == [1, 2, 3, 4, 5]
         # the seed's example indices (A.2)
@@ -182,3 +182,110 @@ def test_handles_reopen_after_fork(rollout_dir):
         os._exit(0 if ok else 1)
     _, status = os.waitpid(pid, 0)
     assert os.waitstatus_to_exitcode(status) == 0
+
+
+def _episode_arrays(dataset, name):
+    return np.concatenate([dataset.read(e, name) for e in dataset.episodes]).astype(np.float64)
+
+
+def test_stored_action_statistics_are_mocapacts(rollout_dir):
+    """MoCapAct divides action sums by the observation rows (one more per episode than actions)."""
+    dataset = RolloutDataset(rollout_dir / "SYN_wave.hdf5")
+    rows = len(_episode_arrays(dataset, schema.OBSERVATIONS))
+    actions = _episode_arrays(dataset, schema.ACTIONS)
+    mean_actions = _episode_arrays(dataset, schema.MEAN_ACTIONS)
+    assert rows == len(actions) + len(dataset.episodes)
+    with h5py.File(rollout_dir / "SYN_wave.hdf5") as f:
+        assert f.attrs[schema.SCHEMA_ATTRIBUTE] == 2
+        stats = {k: f[f"stats/{k}"][...] for k in f["stats"]}
+    mocapact_mean = actions.sum(0) / rows
+    np.testing.assert_allclose(stats["act_mean"], mocapact_mean, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(stats["act_var"], (actions**2).sum(0) / rows - mocapact_mean**2, rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(stats["mean_act_mean"], mean_actions.sum(0) / rows, rtol=1e-5, atol=1e-6)
+    assert np.abs(stats["act_mean"] - actions.mean(0)).max() > 1e-4  # per-action means differ: the test can fail
+    # The reader's pooled statistics stay per action (what the sampler normalises with).
+    pooled = dataset.statistics()
+    np.testing.assert_allclose(pooled.act_mean, actions.mean(0), rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(pooled.act_var, actions.var(0), rtol=1e-3, atol=1e-6)
+    np.testing.assert_allclose(pooled.mean_act_mean, mean_actions.mean(0), rtol=1e-4, atol=1e-6)
+
+
+def test_version_1_and_mocapact_files_give_the_same_pooled_statistics(rollout_dir, tmp_path):
+    current = RolloutDataset(rollout_dir / "SYN_wave.hdf5").statistics()
+    actions = _episode_arrays(RolloutDataset(rollout_dir / "SYN_wave.hdf5"), schema.ACTIONS)
+    old = tmp_path / "v1" / "SYN_wave.hdf5"
+    old.parent.mkdir()
+    old.write_bytes((rollout_dir / "SYN_wave.hdf5").read_bytes())
+    with h5py.File(old, "r+") as f:  # version 1 stored per-action statistics
+        f.attrs[schema.SCHEMA_ATTRIBUTE] = 1
+        f["stats/act_mean"][...] = actions.mean(0)
+        f["stats/act_var"][...] = actions.var(0)
+    theirs = tmp_path / "mocapact" / "SYN_wave.hdf5"
+    theirs.parent.mkdir()
+    theirs.write_bytes((rollout_dir / "SYN_wave.hdf5").read_bytes())
+    with h5py.File(theirs, "r+") as f:  # MoCapAct's: no schema attribute, no action count
+        del f.attrs[schema.SCHEMA_ATTRIBUTE]
+        del f["stats/action_count"]
+    for path in (old, theirs):
+        pooled = RolloutDataset(path).statistics()
+        np.testing.assert_allclose(pooled.act_mean, current.act_mean, rtol=1e-5, atol=1e-6)
+        np.testing.assert_allclose(pooled.act_var, current.act_var, rtol=1e-3, atol=1e-6)
+    assert is_complete(old, ["SYN_wave-0-196"], 2, 3)  # a version-1 file is finished work, never redone
+
+
+def test_dataset_metrics_npz_has_mocapacts_fields_and_values(rollout_dir, tmp_path):
+    from distill.dataset.metrics import METRICS_FILE, write_dataset_metrics
+
+    folder = tmp_path / "dataset"
+    folder.mkdir()
+    for name in ("SYN_stand.hdf5", "SYN_wave.hdf5"):
+        (folder / name).write_bytes((rollout_dir / name).read_bytes())
+    path = write_dataset_metrics(folder)
+    assert path == folder / METRICS_FILE  # nothing else left behind (written under a temporary name, then renamed)
+    assert sorted(p.name for p in folder.iterdir()) == ["SYN_stand.hdf5", "SYN_wave.hdf5", METRICS_FILE]
+    metrics = np.load(path, allow_pickle=True)  # as MoCapAct's ExpertDataset reads it
+    assert set(metrics.files) == {
+        "proprio_mean", "proprio_var", "act_mean", "act_var", "mean_act_mean", "mean_act_var",
+        "count", "snippet_returns", "values", "advantages",
+    }  # fmt: skip
+    dataset = RolloutDataset(folder)
+    observations = _episode_arrays(dataset, schema.OBSERVATIONS)
+    actions = _episode_arrays(dataset, schema.ACTIONS)
+    rows = len(observations)
+    assert int(metrics["count"]) == rows
+    np.testing.assert_allclose(metrics["proprio_mean"], observations.mean(0), rtol=1e-4, atol=1e-5)
+    np.testing.assert_allclose(metrics["act_mean"], actions.sum(0) / rows, rtol=1e-5, atol=1e-6)
+    act_var = (actions**2).sum(0) / rows - (actions.sum(0) / rows) ** 2
+    np.testing.assert_allclose(metrics["act_var"], act_var, rtol=1e-3, atol=1e-6)
+    values, advantages = metrics["values"].item(), metrics["advantages"].item()
+    returns = metrics["snippet_returns"].item()
+    assert list(values) == sorted(dataset.snippets()) == list(returns)
+    for snippet in dataset.snippets():
+        episodes = [e for e in dataset.episodes if e.snippet == snippet]
+        assert [e.index for e in episodes] == sorted(e.index for e in episodes)  # start episodes first
+        np.testing.assert_array_equal(
+            values[snippet], np.concatenate([dataset.read(e, schema.VALUES) for e in episodes])
+        )
+        np.testing.assert_array_equal(
+            advantages[snippet], np.concatenate([dataset.read(e, schema.ADVANTAGES) for e in episodes])
+        )
+        start, rsi = dataset.expert_metrics("start")[snippet], dataset.expert_metrics("random")[snippet]
+        # Mean over all its episodes (MoCapAct's np.mean of both lists; it only runs with S == R).
+        expected = (2 * start["normalized_reward"] + 3 * rsi["normalized_reward"]) / 5  # S = 2, R = 3
+        assert returns[snippet] == pytest.approx(expected)
+
+
+def test_rollout_command_writes_the_metrics(trained_expert, tmp_path, capsys):
+    from mocap_hierarchy.cli import main
+
+    experts = tmp_path / "experts"
+    experts.mkdir()
+    import shutil
+
+    shutil.copytree(trained_expert, experts / trained_expert.name)
+    out = tmp_path / "rollouts"
+    args = ["rollout", "--experts", str(experts), "--out", str(out), "--n-start", "1", "--n-rsi", "1", "--n-envs", "2"]
+    assert main(args) == 0
+    assert "dataset_metrics.npz" in capsys.readouterr().out
+    metrics = np.load(out / "dataset_metrics.npz", allow_pickle=True)
+    assert list(metrics["values"].item()) == [trained_expert.name]

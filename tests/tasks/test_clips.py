@@ -11,6 +11,12 @@ def test_split_matches_seed_example():
     assert split_snippets(529) == [(0, 198), (165, 363), (330, 529)]
 
 
+def test_split_puts_the_whole_remainder_on_the_last_snippet():
+    # MoCapAct's rule: equal lengths, remainder last (spreading it would give 0-182, 149-332, 299-482).
+    assert split_snippets(482) == [(0, 182), (149, 331), (298, 482)]
+    assert split_snippets(760) == [(0, 178), (145, 323), (290, 468), (435, 613), (580, 760)]
+
+
 @pytest.mark.parametrize("length", [1, 16, 210])
 def test_short_clips_stay_whole(length):
     assert split_snippets(length) == [(0, length)]
@@ -21,8 +27,8 @@ def test_split_properties(length):
     snippets = split_snippets(length)
     assert snippets[0][0] == 0 and snippets[-1][1] == length
     sizes = [end - start for start, end in snippets]
-    assert max(sizes) <= 210
-    assert max(sizes) - min(sizes) <= 1  # uniform up to the rounding remainder
+    assert len(set(sizes[:-1])) <= 1 and max(sizes[:-1], default=0) <= 210  # equal, at most max_len ...
+    assert 0 <= sizes[-1] - sizes[0] < len(snippets)  # ... and the last one takes the remainder
     for (_, end), (next_start, _) in itertools.pairwise(snippets):
         assert end - next_start == 33
     # fewest snippets: one fewer could not respect the maximum length
@@ -31,10 +37,15 @@ def test_split_properties(length):
         assert (length + (fewer - 1) * 33) / fewer > 210
 
 
-def test_get_up_clips_are_never_cut():
+def test_get_up_clips_are_never_cut(monkeypatch):
     from dm_control.locomotion.tasks.reference_pose import cmu_subsets
 
+    import tasks.clips.snippets as module
+
     get_up = cmu_subsets.GET_UP.ids[0]
+    listed = module.mocapact_snippets()
+    assert all(len(listed[c]) == 1 for c in cmu_subsets.GET_UP.ids if c in listed)  # MoCapAct keeps them whole too
+    monkeypatch.setattr(module, "mocapact_snippets", dict)  # the rule alone, as for clips MoCapAct does not list
     assert snippets_of_clip(get_up, 900) == [SnippetId(get_up, 0, 900)]
     assert len(snippets_of_clip("CMU_009_12", 529)) == 3
 
@@ -98,3 +109,27 @@ def test_cmu_file_found_in_dm_control_cache_only_at_its_exact_size(monkeypatch, 
         f.truncate(CMU_2020_BYTES)
     assert find_cmu_file() == cached
     assert resolve_clip_file(None, ["CMU_016_22"]) == cached
+
+
+def test_mocapact_snippet_list_is_shipped_whole():
+    from tasks.clips.snippets import mocapact_snippets
+
+    listed = mocapact_snippets()
+    assert len(listed) == 836 and sum(len(s) for s in listed.values()) == 2589
+    assert [str(s) for s in listed["CMU_091_02"]] == ["CMU_091_02-0-182", "CMU_091_02-149-331", "CMU_091_02-298-482"]
+    # The rule reproduces 806 clips exactly; the other 30 are cut irregularly in MoCapAct's list.
+    by_rule = sum(split_snippets(s[-1].end) == [(x.start, x.end) for x in s] for s in listed.values())
+    assert by_rule == 806
+    irregular = listed["CMU_015_03"]  # 3482 steps: the rule would start the second snippet at 164 too, but ...
+    assert (irregular[-1].start, irregular[-1].end) == (3280, 3482)
+    assert split_snippets(3482)[-1] != (3280, 3482)  # ... MoCapAct's last snippet is not the rule's
+
+
+def test_cmu_clips_use_mocapact_ids_and_other_clips_the_rule():
+    from tasks.clips.snippets import mocapact_snippets
+
+    assert snippets_of_clip("CMU_015_03", 3482) == list(mocapact_snippets()["CMU_015_03"])
+    assert [str(s) for s in snippets_of_clip("CMU_091_02", 482)][1] == "CMU_091_02-149-331"
+    with pytest.raises(ValueError, match="not the CMU 2020 file"):
+        snippets_of_clip("CMU_091_02", 500)
+    assert snippets_of_clip("MY_clip_01", 482) == [SnippetId("MY_clip_01", s, e) for s, e in split_snippets(482)]
