@@ -12,7 +12,8 @@ modules that build networks or read model files, and only when they are used):
 * :mod:`foundation.sb3`: the one stable-baselines3 PPO builder and its save helpers;
 * :mod:`foundation.lockstep`: several environments stepped for one batched policy call;
 * :mod:`foundation.config_cli`: typed dataclass configs as command-line flags;
-* :mod:`foundation.lazy`: package exports imported on first use.
+* :mod:`foundation.lazy`: package exports imported on first use;
+* :mod:`foundation.inert_pickle`: foreign pickles read with stand-ins, no code of theirs run.
 """
 
 from typing import TYPE_CHECKING

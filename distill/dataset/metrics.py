@@ -52,7 +52,8 @@ def dataset_metrics(files: list[Path]) -> dict[str, object]:
             stats = schema.group_at(f, schema.STATS, where)
             count = float(schema.dataset_at(stats, "count", where)[()])
             per_row = schema.actions_per_row_statistics(layout.version)
-            actions = float(stats[schema.ACTION_COUNT][()]) if schema.ACTION_COUNT in stats else count
+            has_actions = schema.ACTION_COUNT in stats
+            actions = float(schema.dataset_at(stats, schema.ACTION_COUNT, where)[()]) if has_actions else count
             for name in ("proprio", "act", "mean_act"):
                 weight = count if (name == "proprio" or per_row) else actions  # back to sums
                 mean = np.asarray(schema.dataset_at(stats, f"{name}_mean", where)[...], dtype=np.float64)
@@ -62,8 +63,10 @@ def dataset_metrics(files: list[Path]) -> dict[str, object]:
             rows += count
             for snippet in layout.snippets:
                 episodes = range(layout.n_start + layout.n_rsi)
-                values[snippet] = np.concatenate([f[f"{snippet}/{i}/{schema.VALUES}"][...] for i in episodes])
-                advantages[snippet] = np.concatenate([f[f"{snippet}/{i}/{schema.ADVANTAGES}"][...] for i in episodes])
+                for table, name in ((values, schema.VALUES), (advantages, schema.ADVANTAGES)):
+                    table[snippet] = np.concatenate(
+                        [schema.dataset_at(f, f"{snippet}/{i}/{name}", where)[...] for i in episodes]
+                    )
                 normalised = [
                     schema.dataset_at(f, f"{snippet}/{group}/{schema.NORM_EPISODE_RETURNS}", where)[...]
                     for group in (schema.START_METRICS, schema.RSI_METRICS)

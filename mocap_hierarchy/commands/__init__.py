@@ -5,7 +5,18 @@ Each module has ``add_commands(subparsers)``, which adds its parsers and sets
 the order ``mocap-hierarchy --help`` lists them in.
 """
 
-COMMAND_MODULES = ("quickstart", "clips", "expert", "dataset", "distill", "gpt", "decoder", "transfer", "record")
+COMMAND_MODULES = (
+    "quickstart",
+    "clips",
+    "expert",
+    "dataset",
+    "distill",
+    "gpt",
+    "decoder",
+    "transfer",
+    "record",
+    "download",
+)
 """Modules of :mod:`mocap_hierarchy.commands`, in the order of the help text."""
 
 __all__ = ["COMMAND_MODULES"]
