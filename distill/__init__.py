@@ -12,9 +12,10 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from distill.dataset.config import RolloutConfig
     from distill.dataset.reader import RolloutDataset
     from distill.dataset.sampler import SamplerConfig
-    from distill.dataset.writer import RolloutConfig, rollout_experts
+    from distill.dataset.writer import rollout_experts
     from distill.experts.config import ExpertConfig
     from distill.experts.loading import load_expert
     from distill.experts.policy import ExpertPolicy
@@ -57,7 +58,7 @@ __getattr__, __dir__ = lazy_exports(
         "MotionGpt": "distill.gpt.model",
         "NpmpConfig": "distill.npmp.model",
         "NpmpPolicy": "distill.npmp.model",
-        "RolloutConfig": "distill.dataset.writer",
+        "RolloutConfig": "distill.dataset.config",
         "RolloutDataset": "distill.dataset.reader",
         "SamplerConfig": "distill.dataset.sampler",
         "TrainerConfig": "distill.trainer",

@@ -13,7 +13,9 @@ modules that build networks or read model files, and only when they are used):
 * :mod:`foundation.lockstep`: several environments stepped for one batched policy call;
 * :mod:`foundation.config_cli`: typed dataclass configs as command-line flags;
 * :mod:`foundation.lazy`: package exports imported on first use;
-* :mod:`foundation.inert_pickle`: foreign pickles read with stand-ins, no code of theirs run.
+* :mod:`foundation.inert_pickle`: foreign pickles read with stand-ins, no code of theirs run;
+* :mod:`foundation.cores`: the cores this process may really use (affinity, cgroup quota, OMP_NUM_THREADS);
+* :mod:`foundation.gl_backend`: a ``MUJOCO_GL`` whose library is missing, named before MuJoCo loads.
 """
 
 from typing import TYPE_CHECKING

@@ -3,7 +3,12 @@
 Each field becomes ``--field-name``; its help text is the field's entry in the
 dataclass docstring's ``Attributes:`` section and its default is the field's
 default. Supported field types: ``int``, ``float``, ``str``, ``bool``, tuples
-of those (several values after one flag) and ``X | None``.
+of those (several values after one flag) and ``X | None``. A ``bool`` field is a
+flag pair, ``--field-name`` / ``--no-field-name``, like every yes/no option of the
+command line.
+
+:class:`LazySubParsers` holds subcommands whose flags are added only when the
+subcommand is chosen, so ``--help`` never imports the modules that define them.
 """
 
 from __future__ import annotations
@@ -13,6 +18,7 @@ import dataclasses
 import re
 import types
 import typing
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -46,6 +52,7 @@ def _scalar(kind: Any) -> Any:
 
 
 def _parse_bool(text: str) -> bool:
+    """One value of a ``tuple[bool, ...]`` field (a single ``bool`` field is a flag pair instead)."""
     lowered = text.lower()
     if lowered in ("1", "true", "yes", "on"):
         return True
@@ -90,6 +97,8 @@ def add_dataclass_arguments(
             group.add_argument(flag, nargs="+", type=_scalar(args[0]), default=None, help=help_text, dest=f.name)
         elif origin in (typing.Union, types.UnionType):
             group.add_argument(flag, type=str, default=None, help=help_text, dest=f.name)
+        elif kind is bool:  # unset stays None, so the dataclass default (or base's value) holds
+            group.add_argument(flag, action=argparse.BooleanOptionalAction, default=None, help=help_text, dest=f.name)
         else:
             group.add_argument(flag, type=_scalar(kind), default=None, help=help_text, dest=f.name)
 
@@ -108,3 +117,59 @@ def dataclass_from_args(cls: type[T], namespace: argparse.Namespace, base: T | N
 def file_in_folder(path: Path, name: str) -> Path:
     """``path`` itself, or ``path / name`` when ``path`` is a folder (commands accept either)."""
     return path / name if path.is_dir() else path
+
+
+Build = Callable[[argparse.ArgumentParser], None]
+"""Adds a subcommand's flags (and its ``handler``) to the subcommand's parser."""
+
+
+class LazySubParsers(argparse._SubParsersAction):
+    """Subcommands whose flags are added on first use.
+
+    A subcommand added with :meth:`add_lazy_parser` is listed, with its one-line help,
+    in its parent's ``--help`` at once; its ``build`` function runs only when the
+    subcommand is chosen on the command line (or :meth:`build_all` asks), so a
+    ``build`` that imports a heavy module costs nothing to the other subcommands.
+    Make one with :func:`add_subcommands`.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._builders: dict[str, Build] = {}
+
+    def add_lazy_parser(self, name: str, build: Build, **kwargs: Any) -> argparse.ArgumentParser:
+        """Adds subcommand ``name`` (``kwargs`` as for ``add_parser``); ``build`` fills it in when it is chosen."""
+        parser = self.add_parser(name, **kwargs)
+        self._builders[name] = build
+        return parser
+
+    def build(self, name: str) -> argparse.ArgumentParser:
+        """The parser of subcommand ``name``, with its flags (built now if it was not yet)."""
+        parser = self._name_parser_map[name]
+        build = self._builders.pop(name, None)
+        if build is not None:
+            build(parser)
+        return parser
+
+    def build_all(self) -> dict[str, argparse.ArgumentParser]:
+        """Builds every subcommand; returns them by name."""
+        return {name: self.build(name) for name in list(self._name_parser_map)}
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: Any,
+        option_string: str | None = None,
+    ) -> None:
+        """Builds the chosen subcommand, then parses its arguments as ``argparse`` does."""
+        if values and values[0] in self._name_parser_map:  # an unknown name is reported by argparse
+            self.build(values[0])
+        super().__call__(parser, namespace, values, option_string)
+
+
+def add_subcommands(parser: argparse.ArgumentParser, **kwargs: Any) -> LazySubParsers:
+    """``parser.add_subparsers(**kwargs)`` whose subcommands can be built lazily (see :class:`LazySubParsers`)."""
+    action = parser.add_subparsers(action=LazySubParsers, **kwargs)
+    assert isinstance(action, LazySubParsers)
+    return action

@@ -237,7 +237,9 @@ def train_transfer(
 
     remaining = config.total_steps - model.num_timesteps
     if remaining > 0:
-        callback = _ProgressAndCheckpoint(config.total_steps, config.checkpoint_every, checkpoint, progress)
+        callback = _ProgressAndCheckpoint(
+            config.total_steps, config.checkpoint_every, checkpoint, progress, config.epochs
+        )
         model.learn(remaining, callback=callback, reset_num_timesteps=False)
 
     path = _save_policy(out, model, source, decoder, decoder_sha, config)
@@ -318,16 +320,20 @@ def _save_resume_files(model, folder: Path) -> None:
 
 
 class _ProgressAndCheckpoint(BaseCallback):
-    """A progress bar over environment steps, and resume files every ``every`` steps."""
+    """A progress bar over environment steps (saying when PPO updates), and resume files every ``every`` steps."""
 
-    def __init__(self, total: int, every: int, folder: Path, progress: bool) -> None:
+    def __init__(self, total: int, every: int, folder: Path, progress: bool, epochs: int) -> None:
         super().__init__()
-        self.total, self.every, self.folder, self.progress = total, every, folder, progress
+        self.total, self.every, self.folder, self.progress, self.epochs = total, every, folder, progress, epochs
 
     def _on_training_start(self) -> None:
         steps = self.model.num_timesteps
         self.bar = tqdm(total=self.total, initial=steps, desc="high-level PPO", unit="step", disable=not self.progress)
         self.next_save = (steps // self.every + 1) * self.every
+
+    def _on_rollout_start(self) -> None:
+        self.bar.set_postfix_str("")
+        self.rollout_began = self.model.num_timesteps
 
     def _on_step(self) -> bool:
         self.bar.update(self.model.num_timesteps - self.bar.n)
@@ -336,7 +342,13 @@ class _ProgressAndCheckpoint(BaseCallback):
             self.next_save += self.every
         return True
 
+    def _on_rollout_end(self) -> None:
+        # The bar stands still while PPO updates on the rollout (after the last one, at 100%): say so.
+        rollout = self.model.num_timesteps - self.rollout_began
+        self.bar.set_postfix_str(f"PPO update: up to {self.epochs} epochs over {rollout} steps")
+
     def _on_training_end(self) -> None:
+        self.bar.set_postfix_str("", refresh=False)
         self.bar.close()
 
 
@@ -386,6 +398,7 @@ def evaluate_transfer(
     seed: int = 0,
     max_steps: int | None = None,
     env_factory: Callable[[], gym.Env] | None = None,
+    progress: bool = False,
 ) -> EvaluationSummary:
     """Runs a task policy deterministically and summarises the task's returns.
 
@@ -396,6 +409,7 @@ def evaluate_transfer(
         seed: Seed of the first episode (then ``seed + 1``, ...).
         max_steps: Override of the task's episode limit (shorter evaluations; registered tasks only).
         env_factory: The factory a policy was trained with when its task is not registered.
+        progress: Show a progress bar over the episodes.
     """
     if episodes < 1:
         raise ValueError("episodes must be at least 1")
@@ -409,7 +423,8 @@ def evaluate_transfer(
         facts.get("steps_per_latent", 1),
     )
     returns, lengths = [], []
-    for episode in range(episodes):
+    bar = tqdm(range(episodes), desc=f"evaluating on {spec.task} (deterministic)", unit="episode", disable=not progress)
+    for episode in bar:
         observation, _ = env.reset(seed=seed + episode)
         total, length, done = 0.0, 0, False
         while not done:

@@ -1,4 +1,9 @@
-"""The ``mocap-hierarchy`` command: one entry point, one subcommand per job (see :mod:`mocap_hierarchy.commands`)."""
+"""The ``mocap-hierarchy`` command: one entry point, one subcommand per job (see :mod:`mocap_hierarchy.commands`).
+
+Building the parser imports only the command modules, which are light: a subcommand
+whose flags come from a heavy module (torch, MuJoCo) adds them when it is chosen, so
+``--help`` at any level starts at once.
+"""
 
 from __future__ import annotations
 
@@ -8,14 +13,18 @@ import importlib.util
 import sys
 from pathlib import Path
 
-import cloudpickle
-
+from foundation.config_cli import add_subcommands
+from foundation.cores import use_available_cores
 from mocap_hierarchy import __version__
 from mocap_hierarchy.commands import COMMAND_MODULES
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The full argument parser (every module of :mod:`mocap_hierarchy.commands` adds its subcommands)."""
+    """The argument parser: every module of :mod:`mocap_hierarchy.commands` adds its subcommands.
+
+    Subcommands with heavy flags are filled in when parsing chooses them; call
+    ``build_all()`` on a :class:`foundation.config_cli.LazySubParsers` to fill them in at once.
+    """
     parser = argparse.ArgumentParser(
         prog="mocap-hierarchy",
         description="Hierarchical humanoid control from motion capture: clips, tracking, skills, transfer.",
@@ -28,7 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="MODULE_OR_FILE",
         help="import a module or .py file that registers your own tasks (tasks.register) before the command runs",
     )
-    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    subparsers = add_subcommands(parser, dest="command", required=True, metavar="COMMAND")
     for name in COMMAND_MODULES:
         importlib.import_module(f"mocap_hierarchy.commands.{name}").add_commands(subparsers)
     return parser
@@ -57,22 +66,43 @@ def load_task_modules(sources: list[str]) -> None:
         module = importlib.util.module_from_spec(spec)
         sys.modules[name] = module
         spec.loader.exec_module(module)
+        import cloudpickle
+
         cloudpickle.register_pickle_by_value(module)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Runs the command line; returns the exit status."""
-    from tasks.viz.video import VideoUnavailableError
+    """Runs the command line; returns the exit status.
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    Before the command runs, torch's and the BLAS libraries' thread pools are sized to the
+    cores this process may use (:func:`foundation.cores.use_available_cores`; a command's
+    explicit ``--torch-threads`` wins).
+    """
+    from foundation.gl_backend import GlBackendError
+
+    try:
+        args = build_parser().parse_args(argv)
+        from tasks.viz.video import VideoUnavailableError  # after parsing: --help imports no simulator
+    except GlBackendError as error:  # MUJOCO_GL names a library that is not installed
+        print(f"mocap-hierarchy: error: {error}", file=sys.stderr)
+        return 2
+
+    threads = getattr(args, "torch_threads", None)
+    use_available_cores(threads if isinstance(threads, int) and threads > 0 else None)
     try:
         load_task_modules(args.tasks_from)
         args.handler(args)
     except (ValueError, FileNotFoundError, KeyError, VideoUnavailableError) as error:
-        print(f"mocap-hierarchy {args.command}: error: {error}", file=sys.stderr)
+        print(f"mocap-hierarchy {args.command}: error: {error_message(error)}", file=sys.stderr)
         return 2
     return 0
+
+
+def error_message(error: Exception) -> str:
+    """What the user reads for ``error``: its message (a ``KeyError``'s without the quotes its ``str`` adds)."""
+    if isinstance(error, KeyError) and len(error.args) == 1 and isinstance(error.args[0], str):
+        return error.args[0]
+    return str(error)
 
 
 if __name__ == "__main__":

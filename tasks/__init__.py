@@ -22,12 +22,22 @@ from typing import TYPE_CHECKING
 # rendering at all (MuJoCo and dm_control read this when first imported).
 os.environ.setdefault("MUJOCO_GL", "egl" if ctypes.util.find_library("EGL") else "disable")
 
+from foundation.gl_backend import check_gl_backend
 from foundation.lazy import lazy_exports
 from tasks.registry import REGISTRY, TaskEntry, make, register, task_names
+
+check_gl_backend()  # before anything imports MuJoCo
 
 if TYPE_CHECKING:  # the name for type checkers; at run time it loads on first use (with MuJoCo)
     from tasks.downstream.walker_task import WalkerTaskEnv
 
-__all__ = ["REGISTRY", "TaskEntry", "WalkerTaskEnv", "make", "register", "task_names"]
+__all__ = [
+    "REGISTRY",
+    "TaskEntry",
+    "WalkerTaskEnv",
+    "make",
+    "register",
+    "task_names",
+]
 
 __getattr__, __dir__ = lazy_exports(globals(), {"WalkerTaskEnv": "tasks.downstream.walker_task"})

@@ -62,6 +62,14 @@ def _resolve(reference: Any) -> Any:
     return getattr(importlib.import_module(module), name)
 
 
+class UnknownSettingError(TypeError, ValueError):
+    """A task override names no field of the task's config.
+
+    A ``TypeError`` as for any bad keyword, and a ``ValueError`` so that the command
+    line reports it as bad input rather than a crash.
+    """
+
+
 @dataclass(frozen=True)
 class TaskEntry:
     """One registered task.
@@ -88,7 +96,7 @@ class TaskEntry:
         valid = {f.name for f in dataclasses.fields(config_type)}
         unknown = sorted(set(overrides) - valid)
         if unknown:
-            raise TypeError(
+            raise UnknownSettingError(
                 f"task {self.name!r} has no setting(s) {unknown}; valid settings: {', '.join(sorted(valid))}"
             )
         return dataclasses.replace(config_type(), **{**self.defaults, **overrides})

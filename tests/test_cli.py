@@ -76,5 +76,11 @@ def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys)
     assert "/plots/latent" in frames(Path(summary["recordings"]["decoder"]))[0]
     for plot in summary["plots"]:
         assert Path(plot).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    assert main(args) == 0  # a second run resumes: the expert is skipped, the dataset file kept
+    assert main(args) == 0  # a second run reads every finished stage's results and runs none
+    rerun = json.loads((tmp_path / "summary.json").read_text())
+    assert rerun["runs"][-1]["stages_run"] == [] and rerun["seconds"] == summary["seconds"]
+    assert "distillation: done earlier" in capsys.readouterr().out
+    (tmp_path / "stages" / "experts.json").unlink()  # as if killed before the experts stage finished
+    assert main(args) == 0  # that stage resumes: the expert is skipped, the dataset file kept
     assert "0 ok, 1 skipped, 0 failed" in capsys.readouterr().out
+    assert json.loads((tmp_path / "summary.json").read_text())["runs"][-1]["stages_run"] == ["experts"]

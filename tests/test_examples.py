@@ -19,7 +19,7 @@ def test_new_task_example_trains_on_a_decoder_file(clip_library, tmp_path, capsy
     from tasks.observables import DECODER, PROPRIOCEPTION
 
     source = EXAMPLES / "new_task.py"
-    assert len(source.read_text().splitlines()) < 100
+    assert len(source.read_text().splitlines()) < 120
     torch.manual_seed(0)
     spec = DecoderSpec({k: PROPRIOCEPTION[k] for k in DECODER}, latent_size=4, hidden_layers=(16,))
     decoder = LatentDecoder(spec, np.zeros(spec.observation_size), np.ones(spec.observation_size))
@@ -30,6 +30,7 @@ def test_new_task_example_trains_on_a_decoder_file(clip_library, tmp_path, capsy
     argv = ["--decoder", str(path), "--out", str(out_dir), "--steps", "64", "--n-envs", "2", "--hidden", "16"]
     score = example["main"](argv)  # two environments in spawned worker processes: they must find the task
     out = capsys.readouterr().out
-    assert np.isfinite(score) and f"mean facing reward after 64 steps: {score:.3f}" in out
+    assert np.isfinite(score) and f"after 64 steps {score:.3f}" in out
+    assert "untrained 0." in out and "--steps 100000" in out  # the baseline and how to train longer
     assert (out_dir / "policy.safetensors").is_file() and (out_dir / "face_heading.rrd").is_file()
     tasks.REGISTRY.pop("face_heading")  # leave the registry as the other tests expect it

@@ -1,9 +1,16 @@
-"""The ground floor: the resume rule and lazy package exports."""
+"""The ground floor: the resume rule, lazy package exports, config flags and the cores at hand."""
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
+import os
+from pathlib import Path
+
 import pytest
 
+from foundation.config_cli import add_dataclass_arguments, add_subcommands, dataclass_from_args
+from foundation.cores import available_cores, cgroup_cpu_limit, use_available_cores
 from foundation.fingerprints import settings_fingerprint
 from foundation.resume import SettingsMismatchError, check_same_settings, differences, settings_record
 
@@ -48,3 +55,97 @@ def test_every_exported_name_exists(package):
     assert module.__all__, package
     for name in module.__all__:
         assert getattr(module, name) is not None, f"{package}.{name}"
+
+
+@dataclasses.dataclass(frozen=True)
+class _Switches:
+    """Two yes/no settings.
+
+    Attributes:
+        fast: Go fast.
+        safe: Stay safe.
+    """
+
+    fast: bool = False
+    safe: bool = True
+
+
+def test_bool_fields_are_flag_pairs_and_unset_keeps_the_default():
+    parser = argparse.ArgumentParser()
+    add_dataclass_arguments(parser, _Switches)
+    assert dataclass_from_args(_Switches, parser.parse_args([])) == _Switches()
+    assert dataclass_from_args(_Switches, parser.parse_args(["--fast", "--no-safe"])) == _Switches(True, False)
+    unsafe = parser.parse_args(["--no-safe"])
+    assert dataclass_from_args(_Switches, unsafe, base=_Switches(fast=True)) == _Switches(True, False)
+    assert "Stay safe. (default: True)" in parser.format_help()
+    with pytest.raises(SystemExit):
+        parser.parse_args(["--fast", "true"])
+
+
+def test_lazy_subcommands_are_listed_at_once_and_built_only_when_chosen():
+    built = []
+
+    def build(parser: argparse.ArgumentParser) -> None:
+        built.append(parser.prog)
+        parser.add_argument("--size", type=int, default=1, help="a size")
+
+    parser = argparse.ArgumentParser(prog="tool")
+    commands = add_subcommands(parser, dest="command", required=True)
+    commands.add_lazy_parser("heavy", build, help="needs a heavy import")
+    commands.add_parser("light", help="needs nothing")
+    assert "needs a heavy import" in parser.format_help() and built == []
+    assert parser.parse_args(["light"]).command == "light" and built == []
+    assert parser.parse_args(["heavy", "--size", "3"]).size == 3
+    assert parser.parse_args(["heavy"]).size == 1 and built == ["tool heavy"]  # built once
+    assert set(commands.build_all()) == {"heavy", "light"} and built == ["tool heavy"]
+
+
+def test_cgroup_v2_quota_is_the_smallest_on_the_way_to_the_root(tmp_path: Path):
+    assert cgroup_cpu_limit(tmp_path) is None
+    (tmp_path / "cpu.max").write_text("max 100000\n")
+    assert cgroup_cpu_limit(tmp_path) is None
+    (tmp_path / "job" / "step").mkdir(parents=True)
+    (tmp_path / "job" / "step" / "cpu.max").write_text("250000 100000\n")
+    assert cgroup_cpu_limit(tmp_path, "/job/step") == 3  # 2.5 cores, rounded up
+    (tmp_path / "job" / "cpu.max").write_text("150000 100000\n")
+    assert cgroup_cpu_limit(tmp_path, "/job/step") == 2
+    assert cgroup_cpu_limit(tmp_path, "/") is None
+
+
+def test_cgroup_v1_quota(tmp_path: Path):
+    v1 = tmp_path / "cpu,cpuacct"
+    v1.mkdir()
+    (v1 / "cpu.cfs_period_us").write_text("100000\n")
+    (v1 / "cpu.cfs_quota_us").write_text("-1\n")
+    assert cgroup_cpu_limit(tmp_path) is None
+    (v1 / "cpu.cfs_quota_us").write_text("50000\n")
+    assert cgroup_cpu_limit(tmp_path) == 1
+
+
+def test_available_cores_takes_the_least_of_affinity_quota_and_omp(tmp_path: Path, monkeypatch):
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    affinity = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    assert available_cores(tmp_path, "/") == affinity
+    (tmp_path / "cpu.max").write_text("100000 100000\n")
+    assert available_cores(tmp_path, "/") == 1
+    (tmp_path / "cpu.max").write_text("max 100000\n")
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    assert available_cores(tmp_path, "/") == 1
+    monkeypatch.setenv("OMP_NUM_THREADS", "not a number")
+    assert available_cores(tmp_path, "/") == affinity
+
+
+def test_thread_variables_the_user_set_are_kept(monkeypatch):
+    torch = pytest.importorskip("torch")
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    monkeypatch.delenv("MKL_NUM_THREADS", raising=False)
+    before = torch.get_num_threads()
+    try:
+        assert use_available_cores() == 1
+        assert os.environ["OMP_NUM_THREADS"] == "1" and os.environ["MKL_NUM_THREADS"] == "1"
+        assert torch.get_num_threads() == 1
+        monkeypatch.setenv("OMP_NUM_THREADS", "3")
+        use_available_cores(1)
+        assert os.environ["OMP_NUM_THREADS"] == "3"  # the user's setting stays for what starts later
+    finally:
+        torch.set_num_threads(before)

@@ -26,3 +26,18 @@ def test_every_import_in_the_readme_works():
     assert len(statements) >= 8 and "import tasks" in statements
     result = subprocess.run([sys.executable, "-c", "\n".join(statements)], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
+
+
+def test_readme_timings_are_the_measured_ones():
+    """Every timing span in the README equals docs/readme_numbers.json (benchmarks/readme_numbers.py writes both)."""
+    import json
+
+    record = json.loads((README.parent / "docs" / "readme_numbers.json").read_text())
+    numbers = record["numbers"]
+    spans = re.findall(r"<!-- measured:(\w+) -->(.*?)<!-- /measured -->", README.read_text())
+    assert (
+        {key for key, _ in spans} == set(numbers) == {"quickstart_minutes", "quickstart_rerun_seconds", "tests_minutes"}
+    )
+    for key, text in spans:
+        assert text == (f"{numbers[key]:.0f}" if key.endswith("_seconds") else f"{numbers[key]:.1f}"), key
+    assert record["machine"]["cores"] >= 1 and record["commit"]  # where and on what they were measured

@@ -5,10 +5,11 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from distill.dataset.config import RolloutConfig
     from distill.dataset.reader import EpisodeRef, RolloutDataset, Statistics, dataset_files
     from distill.dataset.sampler import SamplerConfig, WindowDataset
     from distill.dataset.schema import DatasetError
-    from distill.dataset.writer import RolloutConfig, rollout_experts, rollout_jobs
+    from distill.dataset.writer import rollout_experts, rollout_jobs
 
 __all__ = [
     "DatasetError",
@@ -28,7 +29,7 @@ __getattr__, __dir__ = lazy_exports(
     {
         "DatasetError": "distill.dataset.schema",
         "EpisodeRef": "distill.dataset.reader",
-        "RolloutConfig": "distill.dataset.writer",
+        "RolloutConfig": "distill.dataset.config",
         "RolloutDataset": "distill.dataset.reader",
         "SamplerConfig": "distill.dataset.sampler",
         "Statistics": "distill.dataset.reader",

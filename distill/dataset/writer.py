@@ -23,6 +23,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from distill.dataset import schema
+from distill.dataset.config import RolloutConfig  # defined there (light), used and re-exported here
 from distill.dataset.metrics import write_dataset_metrics
 from distill.experts.fanout import Job
 from distill.experts.files import find_experts
@@ -316,27 +317,6 @@ def is_complete(path: Path, snippets: list[str], n_start: int, n_rsi: int) -> bo
             )
     except (OSError, schema.DatasetError, KeyError):
         return False
-
-
-@dataclass(frozen=True)
-class RolloutConfig:
-    """Settings of ``mocap-hierarchy rollout`` (defaults: the seed's small dataset, A.3).
-
-    Attributes:
-        n_start: Episodes per snippet from the snippet's start (S).
-        n_rsi: Episodes per snippet from random frames (R).
-        min_steps: Random starts exclude the last ``min_steps + 1`` frames.
-        n_envs: Environments stepped in lockstep.
-        seed: Seed of starts and action noise.
-        trust_pickle: Convert experts without our sidecar from their pickles.
-    """
-
-    n_start: int = 10
-    n_rsi: int = 10
-    min_steps: int = 9
-    n_envs: int = 8
-    seed: int = 0
-    trust_pickle: bool = False
 
 
 def rollout_clip(

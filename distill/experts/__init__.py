@@ -5,8 +5,8 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
-    from distill.experts.config import ExpertConfig, PiecewiseLearningRate
-    from distill.experts.evaluation import EvaluationConfig, EvaluationResult, evaluate_policy
+    from distill.experts.config import EvaluationConfig, ExpertConfig, PiecewiseLearningRate
+    from distill.experts.evaluation import EvaluationResult, evaluate_policy
     from distill.experts.fanout import Job, JobReport, run_jobs, summarise
     from distill.experts.files import ExpertDir, ExpertFilesError, expert_dir_for, find_experts
     from distill.experts.loading import load_expert
@@ -44,7 +44,7 @@ __getattr__, __dir__ = lazy_exports(
     globals(),
     {
         "ConfigMismatchError": "distill.experts.training",
-        "EvaluationConfig": "distill.experts.evaluation",
+        "EvaluationConfig": "distill.experts.config",
         "EvaluationResult": "distill.experts.evaluation",
         "ExpertConfig": "distill.experts.config",
         "ExpertDir": "distill.experts.files",

@@ -1,10 +1,14 @@
-"""Configuration of snippet-expert training: the seed's Table 1 and B.1.2 as defaults."""
+"""Configuration of snippet experts, training and evaluation: the seed's Table 1 and B.1.2 as defaults.
+
+Light on purpose (no torch, no simulator): the command line builds its flags from these classes.
+"""
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from typing import Any
+
+from foundation.cores import available_cores
 
 
 @dataclass(frozen=True)
@@ -77,7 +81,7 @@ class ExpertConfig:
         """Number of environments: ``n_envs``, or as many as CPU cores that divide ``steps_per_update``."""
         if self.n_envs > 0:
             return self.n_envs
-        cores = max(1, os.cpu_count() or 1)
+        cores = available_cores()
         return max(d for d in range(1, cores + 1) if self.steps_per_update % d == 0)
 
     def validate(self) -> None:
@@ -97,6 +101,34 @@ class ExpertConfig:
             raise ValueError("action_std must be positive")
         if self.eval_every < 1 or self.eval_episodes < 1 or self.checkpoint_every < 1:
             raise ValueError("eval_every, eval_episodes and checkpoint_every must be positive")
+
+
+@dataclass(frozen=True)
+class EvaluationConfig:
+    """How to evaluate an expert (defaults: the seed's protocol, B.1.2).
+
+    Attributes:
+        episodes: Number of episodes.
+        init: ``random`` (reference-state initialisation) or ``start`` of the snippet.
+        min_steps: Random starts exclude the last ``min_steps + 1`` frames (30).
+        action_noise: Gaussian noise added to the mean action (0 gives a deterministic policy).
+        termination_threshold: Tracking error that ends an episode (the expert's training value).
+        n_envs: Environments stepped in lockstep.
+        seed: Seed of starts and noise.
+    """
+
+    episodes: int = 1000
+    init: str = "random"
+    min_steps: int = 29
+    action_noise: float = 0.1
+    termination_threshold: float = 0.3
+    n_envs: int = 16
+    seed: int = 0
+
+
+EVALUATIONS = ("eval_rsi", "eval_start")
+"""Where an expert directory keeps a best policy: the best from random starts (used by default), or
+from the snippet's start (MoCapAct's ``clip_expert/train.py`` writes both)."""
 
 
 def expert_config_from_json(values: dict[str, Any]) -> ExpertConfig:

@@ -11,33 +11,11 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from tqdm.auto import tqdm
 
+from distill.experts.config import EvaluationConfig  # defined there (light), used and re-exported here
 from distill.experts.policy import ExpertPolicy
 from foundation.lockstep import Lockstep
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 from tasks.walker import WalkerModel, build_walker
-
-
-@dataclass(frozen=True)
-class EvaluationConfig:
-    """How to evaluate an expert (defaults: the seed's protocol, B.1.2).
-
-    Attributes:
-        episodes: Number of episodes.
-        init: ``random`` (reference-state initialisation) or ``start`` of the snippet.
-        min_steps: Random starts exclude the last ``min_steps + 1`` frames (30).
-        action_noise: Gaussian noise added to the mean action (0 gives a deterministic policy).
-        termination_threshold: Tracking error that ends an episode (the expert's training value).
-        n_envs: Environments stepped in lockstep.
-        seed: Seed of starts and noise.
-    """
-
-    episodes: int = 1000
-    init: str = "random"
-    min_steps: int = 29
-    action_noise: float = 0.1
-    termination_threshold: float = 0.3
-    n_envs: int = 16
-    seed: int = 0
 
 
 @dataclass(frozen=True)

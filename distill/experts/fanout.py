@@ -10,7 +10,6 @@ job's outcome: nothing is dropped silently.
 from __future__ import annotations
 
 import multiprocessing
-import os
 import time
 import traceback
 from collections.abc import Callable
@@ -20,6 +19,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from tqdm.auto import tqdm
+
+from foundation.cores import available_cores
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,7 @@ def run_jobs(
     if ray_address is not None:
         _run_on_ray(pending, reports, max_attempts, ray_address, bar)
     else:
-        _run_locally(pending, reports, max_attempts, workers or (os.cpu_count() or 1), bar)
+        _run_locally(pending, reports, max_attempts, workers or available_cores(), bar)
     bar.close()
     return [reports[name] for name in names]
 

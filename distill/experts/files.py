@@ -30,6 +30,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
+from distill.experts.config import EVALUATIONS  # defined there (light), used and re-exported here
 from foundation.atomic import write_json
 from tasks.clips.snippets import SnippetId, parse_snippet_id
 
@@ -40,11 +41,6 @@ EXPERT_FORMAT_VERSION = 2
 
 class ExpertFilesError(FileNotFoundError):
     """An expert directory is missing files or holds unreadable ones."""
-
-
-EVALUATIONS = ("eval_rsi", "eval_start")
-"""Where an expert directory keeps a best policy: the best from random starts (used by default), or
-from the snippet's start (MoCapAct's ``clip_expert/train.py`` writes both)."""
 
 
 @dataclass(frozen=True)

@@ -268,6 +268,8 @@ def train_expert(
 
     Raises:
         ConfigMismatchError: A checkpoint from different settings exists.
+        KeyError: The clip file has no such clip (checked before any folder is created).
+        ValueError: Malformed settings or snippet id, or steps outside the clip (checked likewise).
     """
     started = time.perf_counter()
     config = config or ExpertConfig()
@@ -305,12 +307,19 @@ def train_expert(
 
 
 def _prepare_directory(expert: ExpertDir, snippet_id: SnippetId, config: ExpertConfig, clips: str | None) -> str:
-    """Creates the expert directory with its clip info and settings; returns the clip file."""
+    """Checks the snippet against its clip file, then creates the expert directory with its clip info.
+
+    Nothing is created for a clip the file lacks or steps the clip does not have.
+
+    Returns:
+        The clip file.
+    """
     clip_file = str(resolve_clip_file(clips, [snippet_id.clip_id]))
-    expert.root.mkdir(parents=True, exist_ok=True)
     lengths = list_clips(clip_file)
     if snippet_id.clip_id not in lengths:
         raise KeyError(f"clip {snippet_id.clip_id} is not in {clip_file}")
+    snippet_id.frame_range(lengths[snippet_id.clip_id])  # ValueError: steps outside the clip
+    expert.root.mkdir(parents=True, exist_ok=True)
     write_clip_info(expert.root, snippet_id, lengths[snippet_id.clip_id])
     return clip_file
 

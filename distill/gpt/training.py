@@ -21,8 +21,11 @@ import os
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+import torch
+
 from distill.dataset.reader import RolloutDataset
 from distill.dataset.sampler import SamplerConfig, WindowDataset
+from distill.gpt.cost import cpu_cost_message
 from distill.gpt.model import GptConfig, GptSpec, MotionGpt
 from distill.trainer import (
     TrainerConfig,
@@ -54,6 +57,11 @@ class GptResult:
 def default_gpt_trainer() -> TrainerConfig:
     """The seed's Table 4 loop: AdamW 3e-6, weight decay 0.1, batch 256, clip 1, 2M steps."""
     return TrainerConfig(steps=2_000_000, learning_rate=3e-6, weight_decay=0.1, batch_size=256, grad_clip=1.0)
+
+
+def _on_cpu(trainer: TrainerConfig) -> bool:
+    """Whether the loop will run on the CPU (``auto`` without CUDA included)."""
+    return trainer.device == "cpu" or (trainer.device == "auto" and not torch.cuda.is_available())
 
 
 def default_gpt_sampler(gpt: GptConfig | None = None) -> SamplerConfig:
@@ -102,6 +110,9 @@ def train_gpt(
                 f"motion GPT: {model.parameter_count():,} parameters ({gpt.layers} layers, {gpt.heads} heads, "
                 f"embedding {gpt.embedding_size}, block {gpt.block_size})"
             )
+            if _on_cpu(trainer):  # say what it will cost before starting (a 57M model: about a minute a step)
+                states = sum(sizes["states"].values())
+                print(cpu_cost_message(gpt, trainer, model.parameter_count(), states, windows.action_size))
         return model
 
     settings = {"gpt": asdict(gpt)}

@@ -5,7 +5,8 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
-    from distill.npmp.evaluation import PolicyEvaluationConfig, evaluate_multi_clip, fraction_of_experts
+    from distill.npmp.config import PolicyEvaluationConfig
+    from distill.npmp.evaluation import evaluate_multi_clip, fraction_of_experts
     from distill.npmp.model import MultiClipPrompt, NpmpConfig, NpmpPolicy, NpmpSpec, load_policy
     from distill.npmp.training import DistillResult, default_sampler, train_npmp
 
@@ -31,7 +32,7 @@ __getattr__, __dir__ = lazy_exports(
         "NpmpConfig": "distill.npmp.model",
         "NpmpPolicy": "distill.npmp.model",
         "NpmpSpec": "distill.npmp.model",
-        "PolicyEvaluationConfig": "distill.npmp.evaluation",
+        "PolicyEvaluationConfig": "distill.npmp.config",
         "default_sampler": "distill.npmp.training",
         "evaluate_multi_clip": "distill.npmp.evaluation",
         "fraction_of_experts": "distill.npmp.evaluation",

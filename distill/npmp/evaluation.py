@@ -10,34 +10,14 @@ the rollout dataset (``start_metrics`` / ``rsi_metrics``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from tqdm.auto import tqdm
 
+from distill.npmp.config import PolicyEvaluationConfig  # defined there (light), used and re-exported here
 from distill.npmp.model import MultiClipPrompt, NpmpPolicy
 from foundation.lockstep import Lockstep
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 from tasks.walker import build_walker
-
-
-@dataclass(frozen=True)
-class PolicyEvaluationConfig:
-    """How to evaluate the multi-clip policy.
-
-    Attributes:
-        episodes: Episodes per snippet (or clip).
-        init: ``random`` (reference-state initialisation) or ``start``.
-        min_steps: Random starts exclude the last ``min_steps + 1`` frames (the seed's 30).
-        n_envs: Environments stepped in lockstep per snippet.
-        seed: Seed of the starts.
-    """
-
-    episodes: int = 100
-    init: str = "random"
-    min_steps: int = 29
-    n_envs: int = 8
-    seed: int = 0
 
 
 def evaluate_multi_clip(

@@ -6,22 +6,17 @@ import argparse
 import json
 from pathlib import Path
 
-from tasks.clips.format import list_clips
-from tasks.clips.snippets import mocapact_snippets, snippets_of_clip, split_snippets
-from tasks.clips.sources import cmu_file_help, find_cmu_file, resolve_clip_file, synthetic_library_path
+from foundation.config_cli import LazySubParsers, add_subcommands
 
 
-def add_commands(subparsers: argparse._SubParsersAction) -> None:
+def add_commands(subparsers: LazySubParsers) -> None:
     """Registers ``clips ...`` and ``tasks``."""
     clips = subparsers.add_parser("clips", help="clip files: synthetic library, listing, snippet splitting")
-    commands = clips.add_subparsers(dest="clips_command", required=True, metavar="COMMAND")
+    commands = add_subcommands(clips, dest="clips_command", required=True, metavar="COMMAND")
 
-    write = commands.add_parser("write-synthetic", help="generate the synthetic clip library (deterministic)")
-    write.add_argument(
-        "--out", type=Path, default=None, help=f"output .h5 (default: the cache, {synthetic_library_path()})"
+    commands.add_lazy_parser(
+        "write-synthetic", _build_write_synthetic, help="generate the synthetic clip library (deterministic)"
     )
-    write.add_argument("--clip", action="append", default=None, help="only this clip id (repeatable)")
-    write.set_defaults(handler=_write_synthetic)
 
     listing = commands.add_parser("list", help="list the clips of a clip file with their lengths and snippets")
     listing.add_argument("--clips", type=Path, default=None, help="clip file (default: the synthetic library)")
@@ -39,15 +34,27 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
 
     split = commands.add_parser("split", help="split a clip length into snippets (seed B.1.1)")
     split.add_argument("length", type=int, help="number of steps in the clip")
-    split.add_argument("--max-len", type=int, default=210)
-    split.add_argument("--overlap", type=int, default=33)
+    split.add_argument("--max-len", type=int, default=210, help="longest snippet, in steps (default: 210)")
+    split.add_argument("--overlap", type=int, default=33, help="steps shared by neighbouring snippets (default: 33)")
     split.set_defaults(handler=_split)
 
     registry = subparsers.add_parser("tasks", help="list the registered tasks")
     registry.set_defaults(handler=_tasks)
 
 
+def _build_write_synthetic(parser: argparse.ArgumentParser) -> None:
+    from tasks.clips.sources import synthetic_library_path
+
+    parser.add_argument(
+        "--out", type=Path, default=None, help=f"output .h5 (default: the cache, {synthetic_library_path()})"
+    )
+    parser.add_argument("--clip", action="append", default=None, help="only this clip id (repeatable)")
+    parser.set_defaults(handler=_write_synthetic)
+
+
 def _clip_file(args: argparse.Namespace) -> Path:
+    from tasks.clips.sources import cmu_file_help, find_cmu_file, resolve_clip_file
+
     if getattr(args, "cmu", False):
         path = find_cmu_file()
         if path is None:
@@ -57,6 +64,8 @@ def _clip_file(args: argparse.Namespace) -> Path:
 
 
 def _write_synthetic(args: argparse.Namespace) -> None:
+    from tasks.clips.format import list_clips
+    from tasks.clips.sources import synthetic_library_path
     from tasks.clips.synthetic.library import write_synthetic_library
 
     path = write_synthetic_library(args.out or synthetic_library_path(), clip_ids=args.clip)
@@ -65,6 +74,9 @@ def _write_synthetic(args: argparse.Namespace) -> None:
 
 
 def _list(args: argparse.Namespace) -> None:
+    from tasks.clips.format import list_clips
+    from tasks.clips.snippets import snippets_of_clip
+
     path = _clip_file(args)
     clips = list_clips(path)
     rows = [
@@ -86,6 +98,9 @@ def _list(args: argparse.Namespace) -> None:
 
 
 def _snippets(args: argparse.Namespace) -> None:
+    from tasks.clips.format import list_clips
+    from tasks.clips.snippets import snippets_of_clip
+
     if args.cmu:
         _mocapact_snippets(args.clip_ids)
         return
@@ -101,6 +116,8 @@ def _snippets(args: argparse.Namespace) -> None:
 
 
 def _mocapact_snippets(clip_ids: list[str]) -> None:
+    from tasks.clips.snippets import mocapact_snippets
+
     listed = mocapact_snippets()
     missing = [c for c in clip_ids if c not in listed]
     if missing:
@@ -114,6 +131,8 @@ def _mocapact_snippets(clip_ids: list[str]) -> None:
 
 
 def _split(args: argparse.Namespace) -> None:
+    from tasks.clips.snippets import split_snippets
+
     for start, end in split_snippets(args.length, args.max_len, args.overlap):
         print(f"{start}-{end}")
 

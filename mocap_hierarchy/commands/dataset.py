@@ -6,16 +6,16 @@ import argparse
 import sys
 from pathlib import Path
 
-from distill.dataset.writer import RolloutConfig
-from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
+from distill.dataset.config import RolloutConfig
+from foundation.config_cli import LazySubParsers, add_dataclass_arguments, dataclass_from_args
 
 
-def add_commands(subparsers: argparse._SubParsersAction) -> None:
+def add_commands(subparsers: LazySubParsers) -> None:
     """Registers ``rollout``."""
     rollout = subparsers.add_parser("rollout", help="roll experts out into the dataset (one HDF5 file per clip)")
     rollout.add_argument("--experts", type=Path, required=True, help="folder of expert directories")
     rollout.add_argument("--out", type=Path, required=True, help="dataset folder")
-    rollout.add_argument("--clips", default=None)
+    rollout.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
     rollout.add_argument("--workers", type=int, default=1, help="clips rolled out in parallel processes")
     rollout.add_argument("--ray", default=None, metavar="ADDRESS", help="run the clips on a Ray cluster")
     add_dataclass_arguments(rollout, RolloutConfig)

@@ -6,13 +6,15 @@ import argparse
 import json
 from pathlib import Path
 
+from foundation.config_cli import LazySubParsers, add_subcommands
 
-def add_commands(subparsers: argparse._SubParsersAction) -> None:
+
+def add_commands(subparsers: LazySubParsers) -> None:
     """Registers ``decoder info`` and ``decoder import-mocapact``."""
     decoder = subparsers.add_parser("decoder", help="decoder files: inspect, import MoCapAct's")
-    decoder_commands = decoder.add_subparsers(dest="decoder_command", required=True, metavar="COMMAND")
+    decoder_commands = add_subcommands(decoder, dest="decoder_command", required=True, metavar="COMMAND")
     info = decoder_commands.add_parser("info", help="print a decoder file's metadata")
-    info.add_argument("file", type=Path)
+    info.add_argument("file", type=Path, help="decoder .safetensors file")
     info.set_defaults(handler=_info)
     convert = decoder_commands.add_parser(
         "import-mocapact", help="convert MoCapAct's multi-clip checkpoint (.ckpt) into a decoder file (no code runs)"

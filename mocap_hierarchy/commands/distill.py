@@ -6,39 +6,54 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from distill.dataset.sampler import SamplerConfig
-from distill.npmp.evaluation import PolicyEvaluationConfig
-from distill.npmp.model import NpmpConfig
-from distill.npmp.training import POLICY_FILE, default_sampler, train_npmp
-from distill.trainer import TrainerConfig, distributed_from_environment
-from foundation.config_cli import add_dataclass_arguments, dataclass_from_args, file_in_folder
+from distill.npmp.config import PolicyEvaluationConfig
+from foundation.config_cli import (
+    LazySubParsers,
+    add_dataclass_arguments,
+    add_subcommands,
+    dataclass_from_args,
+    file_in_folder,
+)
 
 
-def add_commands(subparsers: argparse._SubParsersAction) -> None:
-    """Registers ``distill train`` and ``distill eval``."""
+def add_commands(subparsers: LazySubParsers) -> None:
+    """Registers ``distill train`` (flags added when chosen: their configs live beside torch) and ``distill eval``."""
     distill = subparsers.add_parser("distill", help="multi-clip policy: train (writes the decoder file), evaluate")
-    distill_commands = distill.add_subparsers(dest="distill_command", required=True, metavar="COMMAND")
-    train_npmp = distill_commands.add_parser(
-        "train", help="distill the rollout dataset into the multi-clip policy (torchrun for many GPUs)"
+    distill_commands = add_subcommands(distill, dest="distill_command", required=True, metavar="COMMAND")
+    distill_commands.add_lazy_parser(
+        "train", _build_train, help="distill the rollout dataset into the multi-clip policy (torchrun for many GPUs)"
     )
-    train_npmp.add_argument("--data", type=Path, required=True, help="rollout dataset folder")
-    train_npmp.add_argument("--out", type=Path, required=True, help="output folder (decoder.safetensors lands here)")
-    add_dataclass_arguments(train_npmp, TrainerConfig)
-    add_dataclass_arguments(train_npmp, NpmpConfig)
-    add_dataclass_arguments(train_npmp, SamplerConfig, ("normalize_observations", "actions"), base=default_sampler())
-    train_npmp.set_defaults(handler=_distill_train)
 
     evaluate_npmp = distill_commands.add_parser("eval", help="roll the multi-clip policy out on snippets or clips")
     evaluate_npmp.add_argument("policy", type=Path, help="policy.safetensors (or the distillation folder)")
     evaluate_npmp.add_argument("--data", type=Path, default=None, help="rollout dataset: its snippets and experts")
     evaluate_npmp.add_argument("--snippets", nargs="+", default=None, help="snippet or clip ids (default: the data's)")
-    evaluate_npmp.add_argument("--clips", default=None)
+    evaluate_npmp.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
     evaluate_npmp.add_argument("--json", type=Path, default=None, help="write the results here")
     add_dataclass_arguments(evaluate_npmp, PolicyEvaluationConfig)
     evaluate_npmp.set_defaults(handler=_distill_eval)
 
 
+def _build_train(parser: argparse.ArgumentParser) -> None:
+    from distill.dataset.sampler import SamplerConfig
+    from distill.npmp.model import NpmpConfig
+    from distill.npmp.training import default_sampler
+    from distill.trainer import TrainerConfig
+
+    parser.add_argument("--data", type=Path, required=True, help="rollout dataset folder")
+    parser.add_argument("--out", type=Path, required=True, help="output folder (decoder.safetensors lands here)")
+    add_dataclass_arguments(parser, TrainerConfig)
+    add_dataclass_arguments(parser, NpmpConfig)
+    add_dataclass_arguments(parser, SamplerConfig, ("normalize_observations", "actions"), base=default_sampler())
+    parser.set_defaults(handler=_distill_train)
+
+
 def _distill_train(args: argparse.Namespace) -> None:
+    from distill.dataset.sampler import SamplerConfig
+    from distill.npmp.model import NpmpConfig
+    from distill.npmp.training import default_sampler, train_npmp
+    from distill.trainer import TrainerConfig, distributed_from_environment
+
     result = train_npmp(
         args.data,
         args.out,
@@ -58,6 +73,7 @@ def _distill_eval(args: argparse.Namespace) -> None:
     from distill.dataset.reader import RolloutDataset
     from distill.npmp.evaluation import evaluate_multi_clip, fraction_of_experts
     from distill.npmp.model import load_policy
+    from distill.npmp.training import POLICY_FILE
 
     config = dataclass_from_args(PolicyEvaluationConfig, args)
     path = file_in_folder(args.policy, POLICY_FILE)

@@ -7,10 +7,23 @@ import os
 import sys
 from pathlib import Path
 
-from mocap_hierarchy.download import ARTIFACTS, CMU_URL_ENV, DEFAULT_POLICY, default_cmu_folder, default_out
-from tasks.clips.sources import CMU_2020_BYTES
+from foundation.config_cli import LazySubParsers
 
-DESCRIPTION = f"""\
+
+def add_commands(subparsers: LazySubParsers) -> None:
+    """Registers ``download`` (its flags and text name the artifacts, added when it is chosen)."""
+    subparsers.add_lazy_parser(
+        "download",
+        _build_download,
+        help="download MoCapAct's files or the CMU clip file (the only command that uses the network)",
+    )
+
+
+def _description() -> str:
+    from mocap_hierarchy.download import ARTIFACTS, default_cmu_folder
+    from tasks.clips.sources import CMU_2020_BYTES
+
+    return f"""\
 Downloads MoCapAct's released files, or the CMU 2020 clip file. This is the only
 mocap-hierarchy command that uses the network: nothing else in the library downloads
 anything, and everything else works offline once the files are here.
@@ -21,7 +34,11 @@ artifacts:
                         `clips list --cmu` find it
 """ + "".join(f"  {a.name:<22}{a.description}\n" for a in ARTIFACTS.values())
 
-EPILOG = f"""\
+
+def _epilog() -> str:
+    from mocap_hierarchy.download import CMU_URL_ENV, default_out
+
+    return f"""\
 Hub artifacts go to --out (default {default_out()}): `multiclip` writes
 mocapact_decoder.safetensors there, the others extract into a folder named after them
 (experts/, small_dataset/, ...). Transfers resume (the CMU file across runs from its .part
@@ -31,15 +48,12 @@ command again skips them. Environment: HF_ENDPOINT (another Hub), HF_TOKEN,
 {CMU_URL_ENV} (another URL for the CMU file)."""
 
 
-def add_commands(subparsers: argparse._SubParsersAction) -> None:
-    """Registers ``download``."""
-    parser = subparsers.add_parser(
-        "download",
-        help="download MoCapAct's files or the CMU clip file (the only command that uses the network)",
-        description=DESCRIPTION,
-        epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+def _build_download(parser: argparse.ArgumentParser) -> None:
+    from mocap_hierarchy.download import ARTIFACTS, DEFAULT_POLICY
+
+    parser.description = _description()
+    parser.epilog = _epilog()
+    parser.formatter_class = argparse.RawDescriptionHelpFormatter
     parser.add_argument("artifact", choices=["cmu", *ARTIFACTS], metavar="ARTIFACT", help="what to download (above)")
     parser.add_argument("--out", type=Path, default=None, help="output folder (defaults above)")
     parser.add_argument("--revision", default="main", help="branch, tag or commit of the Hub repo (default: main)")
@@ -61,6 +75,8 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
 
 def _download(args: argparse.Namespace) -> None:
     from mocap_hierarchy.download import (
+        ARTIFACTS,
+        CMU_URL_ENV,
         DownloadError,
         HubSettings,
         download_archives,

@@ -8,16 +8,14 @@ import json
 import sys
 from pathlib import Path
 
-from distill.experts.config import ExpertConfig
-from distill.experts.evaluation import EvaluationConfig
-from distill.experts.files import EVALUATIONS
-from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
+from distill.experts.config import EVALUATIONS, EvaluationConfig, ExpertConfig
+from foundation.config_cli import LazySubParsers, add_dataclass_arguments, add_subcommands, dataclass_from_args
 
 
-def add_commands(subparsers: argparse._SubParsersAction) -> None:
+def add_commands(subparsers: LazySubParsers) -> None:
     """Registers ``expert train``, ``expert train-many``, ``expert eval`` and ``expert convert``."""
     expert = subparsers.add_parser("expert", help="clip-snippet experts: train, evaluate, train many, convert")
-    commands = expert.add_subparsers(dest="expert_command", required=True, metavar="COMMAND")
+    commands = add_subcommands(expert, dest="expert_command", required=True, metavar="COMMAND")
 
     train = commands.add_parser("train", help="train one snippet expert with PPO (resumes if interrupted)")
     train.add_argument("--snippet", required=True, help="snippet id CLIP-START-END (or a clip id)")
@@ -29,9 +27,9 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
 
     many = commands.add_parser("train-many", help="train many experts as independent jobs (process pool or Ray)")
     many.add_argument("--snippets", type=Path, required=True, help="text file: one snippet id per line")
-    many.add_argument("--out", type=Path, required=True)
-    many.add_argument("--clips", default=None)
-    many.add_argument("--steps", type=int, default=None)
+    many.add_argument("--out", type=Path, required=True, help="folder receiving one <snippet>/ per expert")
+    many.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    many.add_argument("--steps", type=int, default=None, help="environment steps per expert (same as --total-steps)")
     many.add_argument("--workers", type=int, default=0, help="local worker processes (0: one per core)")
     many.add_argument("--ray", default=None, metavar="ADDRESS", help="run on a Ray cluster ('local' starts one)")
     many.add_argument("--max-attempts", type=int, default=3, help="attempts per job before it is reported failed")
@@ -40,7 +38,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
 
     evaluate = commands.add_parser("eval", help="evaluate experts: normalised reward and length")
     evaluate.add_argument("experts", type=Path, help="an expert directory or a folder of them")
-    evaluate.add_argument("--clips", default=None)
+    evaluate.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
     evaluate.add_argument("--deterministic", action="store_true", help="no action noise (same as --action-noise 0)")
     evaluate.add_argument("--trust-pickle", action="store_true", help="convert experts without our sidecar")
     evaluate.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to use")

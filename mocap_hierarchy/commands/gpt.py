@@ -6,42 +6,61 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from distill.dataset.sampler import SamplerConfig
-from distill.gpt.completion import CompletionConfig
-from distill.gpt.model import GptConfig
-from distill.gpt.training import GPT_FILE, default_gpt_sampler, default_gpt_trainer, train_gpt
-from distill.trainer import TrainerConfig, distributed_from_environment
-from foundation.config_cli import add_dataclass_arguments, dataclass_from_args, file_in_folder
+from foundation.config_cli import (
+    LazySubParsers,
+    add_dataclass_arguments,
+    add_subcommands,
+    dataclass_from_args,
+    file_in_folder,
+)
 
 
-def add_commands(subparsers: argparse._SubParsersAction) -> None:
-    """Registers ``gpt train`` and ``gpt complete``."""
+def add_commands(subparsers: LazySubParsers) -> None:
+    """Registers ``gpt train`` and ``gpt complete`` (flags added when chosen: their configs live beside torch)."""
     gpt = subparsers.add_parser("gpt", help="motion GPT: train on the rollout dataset, complete motions")
-    commands = gpt.add_subparsers(dest="gpt_command", required=True, metavar="COMMAND")
+    commands = add_subcommands(gpt, dest="gpt_command", required=True, metavar="COMMAND")
+    commands.add_lazy_parser(
+        "train", _build_train, help="train the GPT (resumes if interrupted; torchrun for many GPUs)"
+    )
+    commands.add_lazy_parser(
+        "complete", _build_complete, help="prompt with experts (or the multi-clip policy), then the GPT"
+    )
 
-    train = commands.add_parser("train", help="train the GPT (resumes if interrupted; torchrun for many GPUs)")
-    train.add_argument("--data", type=Path, required=True, help="rollout dataset folder")
-    train.add_argument("--out", type=Path, required=True, help="output folder (gpt.safetensors lands here)")
-    add_dataclass_arguments(train, TrainerConfig, base=default_gpt_trainer())
-    add_dataclass_arguments(train, GptConfig)
-    add_dataclass_arguments(train, SamplerConfig, ("normalize_observations", "actions"), base=default_gpt_sampler())
-    train.set_defaults(handler=_train)
 
-    complete = commands.add_parser("complete", help="prompt with experts (or the multi-clip policy), then the GPT")
-    complete.add_argument("--gpt", type=Path, required=True, help="gpt.safetensors or the folder holding it")
-    source = complete.add_mutually_exclusive_group(required=True)
+def _build_train(parser: argparse.ArgumentParser) -> None:
+    from distill.dataset.sampler import SamplerConfig
+    from distill.gpt.model import GptConfig
+    from distill.gpt.training import default_gpt_sampler, default_gpt_trainer
+    from distill.trainer import TrainerConfig
+
+    parser.add_argument("--data", type=Path, required=True, help="rollout dataset folder")
+    parser.add_argument("--out", type=Path, required=True, help="output folder (gpt.safetensors lands here)")
+    add_dataclass_arguments(parser, TrainerConfig, base=default_gpt_trainer())
+    add_dataclass_arguments(parser, GptConfig)
+    add_dataclass_arguments(parser, SamplerConfig, ("normalize_observations", "actions"), base=default_gpt_sampler())
+    parser.set_defaults(handler=_train)
+
+
+def _build_complete(parser: argparse.ArgumentParser) -> None:
+    from distill.gpt.completion import CompletionConfig
+
+    parser.add_argument("--gpt", type=Path, required=True, help="gpt.safetensors or the folder holding it")
+    source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--experts", type=Path, help="folder of expert directories: each prompts its own snippet")
     source.add_argument("--policy", type=Path, help="multi-clip policy.safetensors prompting every snippet")
-    complete.add_argument("--snippets", nargs="+", default=None, help="snippet ids (default: every expert's)")
-    complete.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
-    complete.add_argument(
-        "--json", type=Path, default=None, help="results file (default: <gpt folder>/completion.json)"
-    )
-    add_dataclass_arguments(complete, CompletionConfig)
-    complete.set_defaults(handler=_complete)
+    parser.add_argument("--snippets", nargs="+", default=None, help="snippet ids (default: every expert's)")
+    parser.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    parser.add_argument("--json", type=Path, default=None, help="results file (default: <gpt folder>/completion.json)")
+    add_dataclass_arguments(parser, CompletionConfig)
+    parser.set_defaults(handler=_complete)
 
 
 def _train(args: argparse.Namespace) -> None:
+    from distill.dataset.sampler import SamplerConfig
+    from distill.gpt.model import GptConfig
+    from distill.gpt.training import default_gpt_sampler, default_gpt_trainer, train_gpt
+    from distill.trainer import TrainerConfig, distributed_from_environment
+
     gpt = dataclass_from_args(GptConfig, args)
     result = train_gpt(
         args.data,
@@ -59,8 +78,9 @@ def _train(args: argparse.Namespace) -> None:
 
 
 def _complete(args: argparse.Namespace) -> None:
-    from distill.gpt.completion import complete_motions, completion_table
+    from distill.gpt.completion import CompletionConfig, complete_motions, completion_table
     from distill.gpt.model import load_gpt
+    from distill.gpt.training import GPT_FILE
     from foundation.atomic import write_json
 
     config = dataclass_from_args(CompletionConfig, args)

@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import argparse
 
-from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
+from foundation.config_cli import LazySubParsers, add_dataclass_arguments, dataclass_from_args
 
 
-def add_commands(subparsers: argparse._SubParsersAction) -> None:
-    """Registers ``quickstart``."""
+def add_commands(subparsers: LazySubParsers) -> None:
+    """Registers ``quickstart`` (flags from :class:`mocap_hierarchy.quickstart.QuickstartConfig`, added when chosen)."""
+    subparsers.add_lazy_parser("quickstart", _build_quickstart, help="run the main job on the built-in synthetic clips")
+
+
+def _build_quickstart(parser: argparse.ArgumentParser) -> None:
     from mocap_hierarchy.quickstart import QuickstartConfig
 
-    quickstart = subparsers.add_parser("quickstart", help="run the main job on the built-in synthetic clips")
-    add_dataclass_arguments(quickstart, QuickstartConfig)
-    quickstart.set_defaults(handler=_quickstart)
+    add_dataclass_arguments(parser, QuickstartConfig)
+    parser.set_defaults(handler=_quickstart)
 
 
 def _quickstart(args: argparse.Namespace) -> None:

@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from foundation.config_cli import LazySubParsers
 
-def add_commands(subparsers: argparse._SubParsersAction) -> None:
+
+def add_commands(subparsers: LazySubParsers) -> None:
     """Registers ``record`` and ``view``."""
     record = subparsers.add_parser("record", help="record a rollout of any policy on any task into a rerun .rrd file")
     record.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
@@ -14,8 +16,10 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
         "--policy", required=True, help="random, an expert directory, or a policy/decoder/GPT .safetensors file"
     )
     record.add_argument("--out", type=Path, required=True, help="the .rrd file to write")
-    record.add_argument("--episodes", type=int, default=1)
-    record.add_argument("--seed", type=int, default=0)
+    record.add_argument("--episodes", type=int, default=1, help="episodes to record (default: 1)")
+    record.add_argument(
+        "--seed", type=int, default=0, help="seed of the episode starts and of random actions or latents (default: 0)"
+    )
     record.add_argument("--prompt", default=None, help="expert directory prompting a GPT (motion_completion)")
     record.add_argument(
         "--video", type=Path, default=None, help="also write an mp4 (needs MUJOCO_GL=egl or osmesa and the video extra)"
@@ -24,7 +28,7 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
     record.set_defaults(handler=_record)
 
     view = subparsers.add_parser("view", help="open a .rrd recording in the rerun viewer (or say how to)")
-    view.add_argument("file", type=Path)
+    view.add_argument("file", type=Path, help="the .rrd recording")
     view.set_defaults(handler=_view)
 
 

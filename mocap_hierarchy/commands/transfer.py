@@ -7,32 +7,42 @@ import dataclasses
 import json
 from pathlib import Path
 
-from foundation.config_cli import add_dataclass_arguments, dataclass_from_args, file_in_folder
-from hierarchy.transfer import TransferConfig
+from foundation.config_cli import (
+    LazySubParsers,
+    add_dataclass_arguments,
+    add_subcommands,
+    dataclass_from_args,
+    file_in_folder,
+)
 
 
-def add_commands(subparsers: argparse._SubParsersAction) -> None:
-    """Registers ``transfer train`` and ``transfer eval``."""
+def add_commands(subparsers: LazySubParsers) -> None:
+    """Registers ``transfer train`` (flags added when chosen: its config lives beside torch) and ``transfer eval``."""
     transfer = subparsers.add_parser("transfer", help="high-level PPO on a task, with or without a decoder")
-    transfer_commands = transfer.add_subparsers(dest="transfer_command", required=True, metavar="COMMAND")
-    train = transfer_commands.add_parser("train", help="train a task policy (resumes an interrupted run)")
-    train.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
-    train.add_argument("--decoder", type=Path, default=None, help="decoder file; omit for the no-decoder baseline")
-    train.add_argument("--out", type=Path, required=True)
-    train.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")
-    train.add_argument(
-        "--set", nargs="*", default=[], metavar="FIELD=VALUE", help="task config overrides (JSON values)"
-    )
-    add_dataclass_arguments(train, TransferConfig)
-    train.set_defaults(handler=_train)
+    transfer_commands = add_subcommands(transfer, dest="transfer_command", required=True, metavar="COMMAND")
+    transfer_commands.add_lazy_parser("train", _build_train, help="train a task policy (resumes an interrupted run)")
     evaluate = transfer_commands.add_parser("eval", help="run a task policy and report the task's returns")
     evaluate.add_argument("policy", type=Path, help="policy.safetensors (or the training folder)")
-    evaluate.add_argument("--episodes", type=int, default=10)
+    evaluate.add_argument("--episodes", type=int, default=10, help="episodes to run (default: 10)")
     evaluate.add_argument("--decoder", type=Path, default=None, help="where the policy's decoder file is now")
     evaluate.add_argument("--max-steps", type=int, default=None, help="shorter episodes than the task's limit")
-    evaluate.add_argument("--seed", type=int, default=0)
-    evaluate.add_argument("--json", type=Path, default=None)
+    evaluate.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
+    evaluate.add_argument("--json", type=Path, default=None, help="write the summary here")
     evaluate.set_defaults(handler=_evaluate)
+
+
+def _build_train(parser: argparse.ArgumentParser) -> None:
+    from hierarchy.transfer import TransferConfig
+
+    parser.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
+    parser.add_argument("--decoder", type=Path, default=None, help="decoder file; omit for the no-decoder baseline")
+    parser.add_argument("--out", type=Path, required=True, help="output folder (policy.safetensors lands here)")
+    parser.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")
+    parser.add_argument(
+        "--set", nargs="*", default=[], metavar="FIELD=VALUE", help="task config overrides (JSON values)"
+    )
+    add_dataclass_arguments(parser, TransferConfig)
+    parser.set_defaults(handler=_train)
 
 
 def parse_settings(pairs: list[str]) -> dict:
@@ -51,7 +61,7 @@ def parse_settings(pairs: list[str]) -> dict:
 
 
 def _train(args: argparse.Namespace) -> None:
-    from hierarchy.transfer import train_transfer
+    from hierarchy.transfer import TransferConfig, train_transfer
 
     config = dataclass_from_args(TransferConfig, args)
     if args.steps is not None:
@@ -64,7 +74,7 @@ def _evaluate(args: argparse.Namespace) -> None:
     from hierarchy.transfer import POLICY_FILE, evaluate_transfer
 
     path = file_in_folder(args.policy, POLICY_FILE)
-    summary = evaluate_transfer(path, args.episodes, args.decoder, args.seed, args.max_steps)
+    summary = evaluate_transfer(path, args.episodes, args.decoder, args.seed, args.max_steps, progress=True)
     print(
         f"{summary.task}: return {summary.mean_return:.2f} +- {summary.std_return:.2f}, "
         f"length {summary.mean_length:.1f} over {summary.episodes} episodes"

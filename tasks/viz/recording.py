@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
+from datetime import timedelta
 from pathlib import Path
 from typing import Any
 
@@ -45,6 +46,12 @@ from tasks.walker import CONTROL_TIMESTEP, WalkerModel
 WALKER_COLOUR = (200, 140, 90, 255)
 GHOST_COLOUR = (90, 160, 230, 70)
 TARGET_COLOUR = (230, 60, 60, 255)
+
+
+FILE_BATCHING = rr.ChunkBatcherConfig(flush_tick=timedelta(seconds=60), flush_num_bytes=8 << 20, flush_num_rows=10_000)
+"""Chunks are cut by size, not every few milliseconds: a slow rollout (rendering a video alongside,
+a GPT) otherwise writes hundreds of tiny chunks that the viewer warns about and that make the file
+several times larger."""
 
 
 class WalkerShapes:
@@ -128,7 +135,7 @@ class RerunRecorder(gym.Wrapper):
         self.path.parent.mkdir(parents=True, exist_ok=True)
         # Written under a temporary name; close() renames it, so an interrupted run leaves no half file.
         self._temporary = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
-        self._stream = rr.RecordingStream(application_id)
+        self._stream = rr.RecordingStream(application_id, batcher_config=FILE_BATCHING)
         self._stream.save(str(self._temporary))
         self._shapes = WalkerShapes(task.walker)
         self._ghost = mujoco.MjData(task.walker.model) if hasattr(type(task), "reference") else None

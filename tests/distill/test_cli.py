@@ -27,7 +27,7 @@ TINY_FLAGS = [
 def test_expert_train_eval_and_rollout(clip_library, tmp_path, capsys):
     experts = tmp_path / "experts"
     args = ["expert", "train", "--snippet", "SYN_stand-0-181", "--out", str(experts), "--steps", "512"]
-    assert main([*args, *TINY_FLAGS, "--n-envs", "1", "--residual-actions", "true"]) == 0
+    assert main([*args, *TINY_FLAGS, "--n-envs", "1", "--residual-actions"]) == 0
     assert "SYN_stand-0-181: budget after 512 steps" in capsys.readouterr().out
 
     results = tmp_path / "eval.json"

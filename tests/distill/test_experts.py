@@ -170,7 +170,7 @@ def test_experts_written_in_format_1_still_load(trained_expert, tmp_path, snippe
 def test_automatic_environment_count_divides_the_update(monkeypatch):
     import distill.experts.config as module
 
-    monkeypatch.setattr(module.os, "cpu_count", lambda: 6)
+    monkeypatch.setattr(module, "available_cores", lambda: 6)
     assert ExpertConfig().resolved_envs() == 4  # 8192 steps split over 4 environments
     assert ExpertConfig(steps_per_update=6000).resolved_envs() == 6
     ExpertConfig().validate()

@@ -238,3 +238,24 @@ def test_same_settings_train_the_same_gpt(rollout_dir, tmp_path):
         models.append(load_gpt(result.model).state_dict())
     for name, value in models[0].items():
         assert torch.equal(value, models[1][name]), name
+
+
+def test_cpu_cost_is_said_before_training_with_sizes_that_fit():
+    from distill.gpt.cost import approximate_parameters, cpu_cost_message, estimate
+    from distill.gpt.model import GptConfig
+    from distill.gpt.training import default_gpt_trainer
+    from distill.trainer import TrainerConfig
+
+    seed_size = approximate_parameters(8, 768, 207, 56)
+    assert 50e6 < seed_size < 65e6  # the seed's GPT is about 57M parameters
+    flops = 50e9  # a 2-core machine
+    cost = estimate(seed_size, 32, default_gpt_trainer(), flops)
+    assert 30 < cost.seconds_per_step < 90  # "did not finish one step in 100 s" on a shared machine
+    message = cpu_cost_message(GptConfig(), default_gpt_trainer(), seed_size, 207, 56, flops=flops)
+    assert "per step" in message and "more than 1 h" in message
+    offered = [line for line in message.splitlines() if line.strip().startswith("--layers")]
+    assert offered and all(int(line.rsplit(": ", 1)[1].split()[0].replace(",", "")) >= 1000 for line in offered)
+    small = cpu_cost_message(
+        GptConfig(layers=2, embedding_size=128), TrainerConfig(steps=100), 400_000, 207, 56, flops=flops
+    )
+    assert "more than" not in small  # fits: just the estimate

@@ -8,7 +8,7 @@ from hierarchy import load_decoder
 from mocap_hierarchy.cli import main
 
 SMALL_MODEL = "--latent-size 4 --encoder-layers 16 16 --decoder-layers 16 16 16 --window 5 --batch-size 8"
-TINY_PPO = "--n-envs 2 --steps-per-update 64 --minibatch-size 32 --hidden-layers 16 --subprocess-envs false"
+TINY_PPO = "--n-envs 2 --steps-per-update 64 --minibatch-size 32 --hidden-layers 16 --no-subprocess-envs"
 
 
 def test_distill_decoder_transfer_commands(rollout_dir, tmp_path, capsys):

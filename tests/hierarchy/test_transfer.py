@@ -141,3 +141,14 @@ def test_train_and_evaluate_on_an_env_factory(tmp_path):
     assert summary.episodes == 2 and all(0 < n <= 30 for n in summary.lengths)
     with pytest.raises(ValueError, match="overrides apply to registered tasks"):
         train_transfer(short_velocity_control, tmp_path / "other", decoder_file, TINY, {"max_steps": 5})
+
+
+def test_transfer_says_when_it_updates_and_when_it_evaluates(tmp_path, capsys):
+    import dataclasses
+
+    config = dataclasses.replace(TINY, total_steps=64)
+    policy = train_transfer("velocity_control", tmp_path, None, config, {"max_steps": 10})
+    evaluate_transfer(policy, episodes=2, progress=True)
+    err = capsys.readouterr().err
+    assert "PPO update: up to 2 epochs over 64 steps" in err  # the bar at 100% says what it waits for
+    assert "evaluating on velocity_control (deterministic)" in err and "2/2" in err

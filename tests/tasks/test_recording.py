@@ -105,3 +105,22 @@ def test_an_interrupted_recording_leaves_no_file(tmp_path):
     with pytest.raises(KeyboardInterrupt):
         record_rollout(env, failing_policy, tmp_path / "broken.rrd")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_slow_rollout_is_not_cut_into_tiny_chunks(tmp_path):
+    """Rendering a video alongside made steps slow, and the file 4x larger in hundreds of small chunks."""
+    import time
+
+    def rollout(path, delay):
+        env = tasks.make("go_to_target", max_steps=40)
+        rng = np.random.default_rng(0)
+
+        def act(observation):
+            time.sleep(delay)
+            return rng.uniform(-0.2, 0.2, 56)
+
+        record_rollout(env, act, path)
+        return path.stat().st_size
+
+    fast, slow = rollout(tmp_path / "fast.rrd", 0.0), rollout(tmp_path / "slow.rrd", 0.03)
+    assert slow < 1.15 * fast

@@ -158,10 +158,19 @@ def test_tasks_from_a_file_reach_spawned_transfer_workers_eval_and_record(clip_l
     common = ["--tasks-from", str(module)]
     ppo = "--n-envs 2 --steps-per-update 64 --minibatch-size 32 --epochs 1 --hidden-layers 16 --device cpu"
     train = [*common, "transfer", "train", "--task", name, "--out", str(out), "--steps", "64", *ppo.split()]
-    assert main([*train, "--subprocess-envs", "true"]) == 0  # workers start with spawn: the task travels by value
+    assert main([*train, "--subprocess-envs"]) == 0  # workers start with spawn: the task travels by value
     assert main([*common, "transfer", "eval", str(out), "--episodes", "1", "--max-steps", "5"]) == 0
     assert f"{name}: return 5.00" in capsys.readouterr().out
     recording = tmp_path / "stand.rrd"
     args = [*common, "record", "--task", name, "--policy", str(out / "policy.safetensors"), "--out", str(recording)]
     assert main([*args, "--set", "max_steps=4"]) == 0
     assert recording.is_file()
+
+
+def test_an_unknown_setting_is_bad_input_for_the_command_line(tmp_path, capsys):
+    from mocap_hierarchy.cli import main
+
+    out = str(tmp_path / "x.rrd")
+    assert main(["record", "--task", "tracking", "--policy", "random", "--out", out, "--set", "max_steps=3"]) == 2
+    assert "task 'tracking' has no setting(s) ['max_steps']" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []  # nothing written

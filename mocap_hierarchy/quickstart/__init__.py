@@ -1,0 +1,73 @@
+"""The main job on the built-in data: everything the library runs end to end today.
+
+Stages:
+
+1. clips: generate (or reuse) the synthetic clip library and split it into snippets;
+2. playback: roll the fast tracking environment on every snippet with the
+   open-loop playback controller (a baseline, and the environment's speed);
+3. experts: train snippet experts for a few snippets (PPO, the seed's
+   settings with a small budget; residual actions by default, which learn
+   faster, see ``benchmarks/expert_learning.py``), as parallel jobs, and
+   evaluate them like the playback rows;
+4. dataset: roll the experts out into the rollout dataset (seed A.2);
+5. distill: the multi-clip policy and its frozen decoder file (seed B.2's
+   objective; hidden layers shrunk to fit the budget), evaluated against the experts;
+6. transfer: velocity control trained with PPO on top of the decoder and, as
+   the baseline, on raw joint targets, each evaluated deterministically;
+7. recordings: both velocity-control policies recorded to ``.rrd`` files;
+8. plots: PNG training curves;
+
+then the summary: a table, verdicts in words and ``summary.json``.
+
+A finished stage writes its results to ``out/stages/NAME.json``; a rerun with
+the same settings reads them and runs nothing (``distillation: done earlier
+(...)``). A stage that was interrupted left no such file: a rerun runs it
+again, and the stage resumes its own files (experts marked done, complete
+dataset files, the distillation and PPO checkpoints). ``out/stages/runs.json``
+lists every run into the folder: when it started, its seconds and the stages it
+ran or read.
+
+``--scale`` multiplies every budget (episodes, steps) for real runs. The GPT is
+not part of the quickstart (it needs a GPU to learn anything; see the README).
+
+Modules: :mod:`~mocap_hierarchy.quickstart.config` (the settings),
+:mod:`~mocap_hierarchy.quickstart.records` (stage records and the run log),
+:mod:`~mocap_hierarchy.quickstart.stages` (each stage's work; :mod:`~mocap_hierarchy.quickstart.progress`
+reads PPO's training returns back),
+:mod:`~mocap_hierarchy.quickstart.plots`, :mod:`~mocap_hierarchy.quickstart.verdicts`,
+:mod:`~mocap_hierarchy.quickstart.report` (the printed summary) and
+:mod:`~mocap_hierarchy.quickstart.pipeline` (:func:`run_quickstart`, which runs them in order).
+"""
+
+from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, QuickstartConfig
+from mocap_hierarchy.quickstart.pipeline import run_quickstart
+from mocap_hierarchy.quickstart.records import (
+    RECORD_FORMAT,
+    STAGES_DIR,
+    RunLog,
+    StageRunner,
+    digest_of,
+    job_runs,
+    job_seconds,
+    settings_digest,
+)
+from mocap_hierarchy.quickstart.report import print_summary
+from mocap_hierarchy.quickstart.verdicts import FOLLOWS_REWARD, LEVEL, summary_verdicts
+
+__all__ = [
+    "EPISODE_LIMIT",
+    "FOLLOWS_REWARD",
+    "LEVEL",
+    "RECORD_FORMAT",
+    "STAGES_DIR",
+    "QuickstartConfig",
+    "RunLog",
+    "StageRunner",
+    "digest_of",
+    "job_runs",
+    "job_seconds",
+    "print_summary",
+    "run_quickstart",
+    "settings_digest",
+    "summary_verdicts",
+]

@@ -1,0 +1,46 @@
+"""The quickstart's settings and the constants its stages, verdicts and messages share."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+EPISODE_LIMIT = 500
+"""Steps per velocity-control episode in the quickstart (the seed's task allows 2000)."""
+
+MODE_LABELS = {"decoder": "on the decoder", "joints": "on joint targets (baseline)"}
+"""How messages name the two velocity-control modes."""
+
+
+@dataclass(frozen=True)
+class QuickstartConfig:
+    """Settings of ``mocap-hierarchy quickstart``.
+
+    Attributes:
+        out: Output folder (a rerun reads the finished stages and resumes the others).
+        episodes_per_snippet: Playback episodes rolled per snippet.
+        expert_snippets: Snippets that get an expert.
+        expert_steps: Environment steps per expert.
+        residual_actions: Experts act as offsets from the reference pose.
+        rollouts_per_snippet: Start-of-snippet and random-start episodes each, per expert.
+        distill_steps: Optimiser steps of the distillation.
+        distill_hidden: Width of the encoder's and decoder's hidden layers (the seed: 1024).
+        transfer_steps: Environment steps of each velocity-control run.
+        record_steps: Steps of each velocity-control recording.
+        scale: Multiplies every budget (episodes, steps, rollouts) for real runs.
+        workers: Parallel expert trainings (0: one per core).
+        seed: Seed of everything random.
+    """
+
+    out: str = "runs/quickstart"
+    episodes_per_snippet: int = 3
+    expert_snippets: tuple[str, ...] = ("SYN_wave-0-196", "SYN_walk_slow-0-182", "SYN_squat-0-155")
+    expert_steps: int = 16_384
+    residual_actions: bool = True
+    rollouts_per_snippet: int = 5
+    distill_steps: int = 600
+    distill_hidden: int = 256
+    transfer_steps: int = 8192
+    record_steps: int = 200
+    scale: float = 1.0
+    workers: int = 0
+    seed: int = 0

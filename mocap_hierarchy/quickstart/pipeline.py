@@ -1,0 +1,129 @@
+"""The quickstart's orchestration: every stage in order through the stage records, then the summary."""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+from foundation.atomic import write_json
+from mocap_hierarchy.quickstart.config import MODE_LABELS, QuickstartConfig
+from mocap_hierarchy.quickstart.plots import plots_stage
+from mocap_hierarchy.quickstart.records import STAGES_DIR, RunLog, StageRunner, settings_digest
+from mocap_hierarchy.quickstart.report import print_summary
+from mocap_hierarchy.quickstart.stages import (
+    dataset_stage,
+    distill_stage,
+    experts_stage,
+    playback_stage,
+    record_stage,
+    transfer_stage,
+)
+from mocap_hierarchy.quickstart.verdicts import summary_verdicts
+from tasks.clips.format import list_clips
+from tasks.clips.snippets import snippets_of_clip
+from tasks.clips.sources import ensure_synthetic_library
+
+
+def run_quickstart(config: QuickstartConfig) -> dict:
+    """Runs (or reads) every stage and returns the summary (also written to ``out/summary.json``).
+
+    The summary's ``seconds`` is the time of the whole job: the runs with these
+    settings up to the first that finished every stage, interruptions included;
+    ``runs`` lists every run into the folder (``stages/runs.json``).
+    """
+    out = Path(config.out)
+    log = RunLog(out / STAGES_DIR / "runs.json", settings_digest(config))
+    try:
+        summary = _run_stages(config, out, StageRunner(out / STAGES_DIR, log))
+        log.finished = True
+    finally:
+        log.save()
+    summary["verdicts"] = summary_verdicts(summary)
+    summary["seconds"] = log.job_seconds()
+    summary["runs"] = log.runs
+    write_json(out / "summary.json", summary)
+    print_summary(summary)
+    print(f"summary written to {out / 'summary.json'}")
+    return summary
+
+
+def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dict:
+    """Every stage, in order; returns the summary without verdicts and times."""
+    library = ensure_synthetic_library(progress=True)
+    clips = list_clips(library)
+    snippets = [str(s) for clip_id, frames in clips.items() for s in snippets_of_clip(clip_id, frames)]
+    print(f"clip library: {library} ({len(clips)} clips, {sum(clips.values())} frames, {len(snippets)} snippets)")
+    settings = asdict(config)
+
+    def pick(*names: str) -> dict[str, Any]:
+        return {name: settings[name] for name in names}
+
+    playback = stages.run(
+        "playback",
+        "playback",
+        {**pick("episodes_per_snippet", "scale", "seed"), "library": str(library), "snippets": snippets},
+        functools.partial(playback_stage, snippets, str(library), config),
+    )
+    experts = stages.run(
+        "experts",
+        "experts",
+        {**pick("expert_snippets", "expert_steps", "residual_actions", "scale", "seed"), "library": str(library)},
+        functools.partial(experts_stage, out / "experts", str(library), config),
+        outputs=lambda rows: [str(out / "experts")],
+        final=lambda rows: all(row["status"] != "failed" for row in rows),
+    )
+    dataset = stages.run(
+        "dataset",
+        "rollout dataset",
+        {**pick("rollouts_per_snippet", "scale", "seed"), "experts": experts},
+        functools.partial(dataset_stage, out / "experts", out / "dataset", str(library), config),
+        outputs=lambda result: [result["folder"]],
+    )
+    distilled = stages.run(
+        "distill",
+        "distillation",
+        {**pick("distill_steps", "distill_hidden", "scale", "seed"), "dataset": dataset, "experts": experts},
+        functools.partial(distill_stage, out / "dataset", out / "distill", experts, config),
+        outputs=lambda result: [result["decoder"], result["policy"], result["history"]],
+    )
+    transfer = {
+        mode: stages.run(
+            f"transfer_{mode}",
+            f"velocity control {MODE_LABELS[mode]}",
+            {**pick("transfer_steps", "scale", "seed"), "decoder": distilled if decoder else None},
+            functools.partial(transfer_stage, out / f"velocity_{mode}", decoder, config),
+            outputs=lambda result: [result["policy"], result["progress"]],
+        )
+        for mode, decoder in (("decoder", distilled["decoder"]), ("joints", None))
+    }
+    recordings = {
+        mode: stages.run(
+            f"record_{mode}",
+            f"recording of velocity control {MODE_LABELS[mode]}",
+            {**pick("record_steps", "scale", "seed"), "transfer": run},
+            functools.partial(record_stage, run["policy"], out / f"velocity_{mode}.rrd", config),
+            outputs=lambda path: [path],
+        )
+        for mode, run in transfer.items()
+    }
+    plots = stages.run(
+        "plots",
+        "plots",
+        {"distill": distilled, "transfer": transfer},
+        functools.partial(plots_stage, out, distilled, transfer),
+        outputs=lambda paths: paths,
+    )
+    return {
+        "config": settings,
+        "clip_file": str(library),
+        "playback": playback["rows"],
+        "env_steps_per_second": playback["env_steps_per_second"],
+        "experts": experts,
+        "dataset": dataset,
+        "distill": distilled,
+        "transfer": transfer,
+        "recordings": recordings,
+        "plots": plots,
+    }

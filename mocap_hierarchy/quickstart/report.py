@@ -1,0 +1,90 @@
+"""The printed summary: the table, the figures, the verdicts and the times."""
+
+from __future__ import annotations
+
+from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, MODE_LABELS
+from mocap_hierarchy.quickstart.records import job_runs
+from mocap_hierarchy.quickstart.verdicts import reward_per_step
+
+
+def print_summary(summary: dict) -> None:
+    """Prints the table, the figures and the verdicts of a summary."""
+    verdicts = summary["verdicts"]
+    playback = {row["snippet"]: row for row in summary["playback"]}
+    print(
+        f"\n{'snippet':<26}{'playback reward':>16}{'length':>8}{'expert reward':>15}{'length':>8}  expert vs playback"
+    )
+    for row in summary["experts"]:
+        base = playback.get(row["snippet"], {})
+        expert_reward = f"{row['normalized_reward']:.3f}" if "normalized_reward" in row else row["status"]
+        expert_length = f"{row['normalized_length']:.3f}" if "normalized_length" in row else ""
+        print(
+            f"{row['snippet']:<26}{base.get('normalized_reward', float('nan')):>16.3f}"
+            f"{base.get('normalized_length', float('nan')):>8.3f}{expert_reward:>15}{expert_length:>8}  "
+            f"{verdicts['experts'][row['snippet']]['verdict']}"
+        )
+    dataset = summary["dataset"]
+    print(
+        f"\nrollout dataset: {dataset['files']} files, {dataset['episodes']} episodes, {dataset['steps']} steps "
+        f"in {dataset['folder']}"
+    )
+    fraction = summary["distill"]["fraction_of_experts"]
+    print(
+        f"multi-clip policy ({summary['distill']['steps']} steps): {fraction['normalized_reward']:.3f} of the "
+        f"experts' normalised reward, {fraction['normalized_length']:.3f} of their length ({fraction['snippets']} "
+        "snippets, deterministic, from the start)"
+    )
+    runs = summary["transfer"]
+    first = next(iter(runs.values()))
+    print(
+        f"velocity control, deterministic evaluation ({first.get('episodes', '?')} episodes of at most "
+        f"{first.get('episode_limit', EPISODE_LIMIT)} steps; reward per step 1 = the commanded velocity):"
+    )
+    for mode, run in runs.items():
+        print(
+            f"  {MODE_LABELS[mode]}: return {run['mean_return']:.1f} ± {run.get('std_return', float('nan')):.1f}, "
+            f"length {run['mean_length']:.0f} steps, reward per step {reward_per_step(run):.3f} "
+            f"({run['steps']} training steps)"
+        )
+    print(f"decoder file: {summary['distill']['decoder']}")
+    print("\nverdicts:")
+    groups: dict[str, list[str]] = {}
+    for snippet, verdict in verdicts["experts"].items():
+        groups.setdefault(verdict["verdict"], []).append(snippet)
+    print("  experts (normalised reward): " + "; ".join(f"{', '.join(s)} {v}" for v, s in groups.items()))
+    multi = verdicts["multi_clip"]
+    print(
+        f"  multi-clip policy: {multi['verdict']} ({multi['fraction_of_expert_reward']:.3f} of their normalised "
+        "reward; 1 = level)"
+    )
+    velocity = verdicts["velocity_control"]
+    line = (
+        f"  velocity control on the decoder: {velocity['verdict']} (reward per step {velocity['reward_per_step']:.3f}, "
+        f"needs {velocity['follows_from']:g})"
+    )
+    if "against_baseline" in velocity:
+        line += (
+            f"; it {velocity['against_baseline']} (return {velocity['mean_return']:.1f} vs "
+            f"{velocity['baseline_mean_return']:.1f})"
+        )
+    print(line)
+    print(f"\nrecordings: {', '.join(summary['recordings'].values())} (mocap-hierarchy view FILE)")
+    print(f"plots: {', '.join(summary['plots'])}")
+    print(f"tracking environment: {summary['env_steps_per_second']:.0f} env steps/s (one process)")
+    print(_time_line(summary))
+
+
+def _time_line(summary: dict) -> str:
+    """How long the whole job took, and this run if it is a rerun."""
+    runs = summary.get("runs", [])
+    this = runs[-1] if runs else {"seconds": summary["seconds"], "stages_run": [], "settings": None}
+    job = job_runs(runs, this["settings"])
+    line = f"quickstart took {_duration(summary['seconds'])}" + (f" over {len(job)} runs" if len(job) > 1 else "")
+    if this not in job:
+        ran = ", ".join(this["stages_run"]) or "none; every stage read from an earlier run"
+        line += f"; this run {_duration(this['seconds'])} (stages run: {ran})"
+    return line
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds / 60:.1f} min" if seconds >= 60 else f"{seconds:.1f} s"

@@ -1,0 +1,314 @@
+"""The quickstart's stage records, run log, verdicts and plots, with its stages replaced by counting fakes.
+
+The real pipeline runs once, with tiny budgets, in
+``tests/test_cli.py::test_quickstart_runs_every_stage_and_resumes``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from mocap_hierarchy.quickstart import (
+    QuickstartConfig,
+    job_seconds,
+    pipeline,
+    plots,
+    print_summary,
+    run_quickstart,
+    summary_verdicts,
+)
+
+STAGES = [
+    "playback",
+    "experts",
+    "dataset",
+    "distill",
+    "transfer_decoder",
+    "transfer_joints",
+    "record_decoder",
+    "record_joints",
+    "plots",
+]
+
+
+class FakeStages:
+    """Stand-ins for the stage functions: they count calls and write the files their results name."""
+
+    def __init__(self, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+        self.calls: Counter[str] = Counter()
+        self.fail_in: str | None = None
+        self.expert_status = "ok"
+        monkeypatch.setattr(pipeline, "ensure_synthetic_library", lambda progress: tmp_path / "clips.h5")
+        monkeypatch.setattr(pipeline, "list_clips", lambda library: {"SYN_stand": 181, "SYN_wave": 196})
+        for name in ("playback", "experts", "dataset", "distill", "transfer", "record", "plots"):
+            monkeypatch.setattr(pipeline, f"{name}_stage", getattr(self, f"_{name}"))
+
+    def _call(self, name: str) -> None:
+        self.calls[name] += 1
+        if name == self.fail_in:
+            raise KeyboardInterrupt(f"killed in {name}")
+
+    def _playback(self, snippets, library, config):
+        self._call("playback")
+        rows = [{"snippet": s, "normalized_reward": 0.5, "normalized_length": 0.6} for s in snippets]
+        return {"rows": rows, "env_steps_per_second": 1000.0}
+
+    def _experts(self, folder: Path, library, config):
+        self._call("experts")
+        folder.mkdir(parents=True, exist_ok=True)
+        if self.expert_status == "failed":
+            return [{"snippet": s, "status": "failed"} for s in config.expert_snippets]
+        return [
+            {"snippet": s, "status": "ok", "normalized_reward": 0.7, "normalized_length": 0.8}
+            for s in config.expert_snippets
+        ]
+
+    def _dataset(self, experts, out: Path, library, config):
+        self._call("dataset")
+        out.mkdir(parents=True, exist_ok=True)
+        return {"folder": str(out), "files": 1, "episodes": 2, "steps": 100}
+
+    def _distill(self, data, out: Path, expert_rows, config):
+        self._call("distill")
+        out.mkdir(parents=True, exist_ok=True)
+        for name in ("decoder.safetensors", "policy.safetensors", "history.json"):
+            (out / name).write_text("{}")
+        return {
+            "decoder": str(out / "decoder.safetensors"),
+            "policy": str(out / "policy.safetensors"),
+            "steps": config.distill_steps,
+            "final_loss": -75.0,
+            "history": str(out / "history.json"),
+            "multi_clip": {},
+            "fraction_of_experts": {"normalized_reward": 0.6, "normalized_length": 0.7, "snippets": 1},
+        }
+
+    def _transfer(self, out: Path, decoder, config):
+        self._call("transfer_decoder" if decoder else "transfer_joints")
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "policy.safetensors").write_text("")
+        (out / "progress.csv").write_text("")
+        return {
+            "policy": str(out / "policy.safetensors"),
+            "steps": config.transfer_steps,
+            "episodes": 5,
+            "episode_limit": 500,
+            "mean_return": 40.0 if decoder else 20.0,
+            "std_return": 2.0,
+            "mean_length": 200.0,
+            "progress": str(out / "progress.csv"),
+        }
+
+    def _record(self, policy: str, path: Path, config):
+        self._call("record_decoder" if "decoder" in policy else "record_joints")
+        path.write_text("")
+        return str(path)
+
+    def _plots(self, out: Path, distilled, transfer):
+        self._call("plots")
+        paths = [out / "distill_loss.png", out / "velocity_control.png"]
+        for path in paths:
+            path.write_text("")
+        return [str(p) for p in paths]
+
+
+@pytest.fixture
+def fakes(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> FakeStages:
+    return FakeStages(monkeypatch, tmp_path)
+
+
+def tiny(tmp_path: Path, **changes) -> QuickstartConfig:
+    return QuickstartConfig(out=str(tmp_path / "qs"), expert_snippets=("SYN_stand-0-181",), **changes)
+
+
+def test_rerun_of_a_finished_quickstart_runs_no_stage(fakes, tmp_path, capsys):
+    first = run_quickstart(tiny(tmp_path))
+    assert fakes.calls == Counter(STAGES)
+    assert first["runs"][0]["stages_run"] == STAGES and first["runs"][0]["finished"]
+    capsys.readouterr()
+    second = run_quickstart(tiny(tmp_path))
+    assert fakes.calls == Counter(STAGES)  # nothing ran a second time
+    out = capsys.readouterr().out
+    assert f"distillation: done earlier ({tmp_path / 'qs' / 'stages' / 'distill.json'})" in out
+    assert "distilling" not in out
+    assert second["runs"][1]["stages_run"] == [] and second["runs"][1]["stages_read"] == STAGES
+    assert second["seconds"] == first["seconds"]  # the job's time, not the rerun's
+    assert "every stage read from an earlier run" in out
+    assert {k: v for k, v in second.items() if k != "runs"} == {k: v for k, v in first.items() if k != "runs"}
+    written = json.loads((tmp_path / "qs" / "summary.json").read_text())
+    assert len(written["runs"]) == 2 and written["verdicts"] == first["verdicts"]
+
+
+def test_a_killed_stage_runs_again_and_the_finished_ones_are_read(fakes, tmp_path):
+    fakes.fail_in = "distill"
+    with pytest.raises(KeyboardInterrupt):
+        run_quickstart(tiny(tmp_path))
+    killed = json.loads((tmp_path / "qs" / "stages" / "runs.json").read_text())
+    assert killed[0]["stages_run"] == ["playback", "experts", "dataset"] and not killed[0]["finished"]
+    assert not (tmp_path / "qs" / "stages" / "distill.json").exists()
+    fakes.fail_in = None
+    summary = run_quickstart(tiny(tmp_path))
+    assert fakes.calls["playback"] == fakes.calls["experts"] == fakes.calls["dataset"] == 1
+    assert fakes.calls["distill"] == 2 and fakes.calls["plots"] == 1
+    assert summary["runs"][1]["stages_run"] == STAGES[3:]
+    assert summary["seconds"] == pytest.approx(summary["runs"][0]["seconds"] + summary["runs"][1]["seconds"])
+
+
+def test_changed_settings_rerun_only_the_stages_they_feed(fakes, tmp_path):
+    run_quickstart(tiny(tmp_path))
+    summary = run_quickstart(tiny(tmp_path, transfer_steps=4096))
+    assert summary["runs"][1]["stages_run"] == STAGES[4:]
+    assert summary["seconds"] == summary["runs"][1]["seconds"]  # a new job: the first run had other settings
+
+
+def test_a_stage_whose_files_are_gone_is_redone(fakes, tmp_path):
+    run_quickstart(tiny(tmp_path))
+    (tmp_path / "qs" / "distill" / "decoder.safetensors").unlink()
+    summary = run_quickstart(tiny(tmp_path))
+    assert fakes.calls["distill"] == 2
+    assert summary["runs"][1]["stages_run"] == ["distill"]  # same result, so the later stages are read
+
+
+def test_failed_experts_are_tried_again_by_a_rerun(fakes, tmp_path):
+    fakes.expert_status = "failed"
+    summary = run_quickstart(tiny(tmp_path))
+    assert summary["verdicts"]["experts"]["SYN_stand-0-181"]["verdict"] == "failed to train"
+    fakes.expert_status = "ok"
+    run_quickstart(tiny(tmp_path))
+    assert fakes.calls["experts"] == 2
+
+
+def test_job_seconds_counts_the_runs_until_one_finished():
+    runs = [
+        {"settings": "a", "seconds": 100.0, "finished": False},
+        {"settings": "a", "seconds": 50.0, "finished": True},
+        {"settings": "a", "seconds": 0.1, "finished": True},
+        {"settings": "b", "seconds": 7.0, "finished": True},
+    ]
+    assert job_seconds(runs, "a") == 150.0
+    assert job_seconds(runs, "b") == 7.0
+
+
+def fabricated_summary(
+    expert_reward: float = 0.7, fraction: float = 0.6, decoder_return: float = 40.0, joints_return: float = 20.0
+) -> dict:
+    run = {"steps": 8192, "episodes": 5, "episode_limit": 500, "std_return": 1.0, "mean_length": 200.0}
+    summary = {
+        "playback": [{"snippet": "SYN_wave-0-196", "normalized_reward": 0.5, "normalized_length": 0.6}],
+        "experts": [
+            {"snippet": "SYN_wave-0-196", "status": "ok", "normalized_reward": expert_reward, "normalized_length": 0.9},
+            {"snippet": "SYN_squat-0-155", "status": "failed"},
+        ],
+        "env_steps_per_second": 900.0,
+        "dataset": {"folder": "runs/qs/dataset", "files": 1, "episodes": 10, "steps": 1000},
+        "distill": {
+            "decoder": "runs/qs/distill/decoder.safetensors",
+            "steps": 600,
+            "fraction_of_experts": {"normalized_reward": fraction, "normalized_length": 0.8, "snippets": 1},
+        },
+        "transfer": {
+            "decoder": {**run, "mean_return": decoder_return},
+            "joints": {**run, "mean_return": joints_return},
+        },
+        "recordings": {"decoder": "d.rrd", "joints": "j.rrd"},
+        "plots": ["distill_loss.png", "velocity_control.png"],
+        "seconds": 600.0,
+        "runs": [{"seconds": 600.0, "stages_run": STAGES, "finished": True, "settings": "a"}],
+    }
+    summary["verdicts"] = summary_verdicts(summary)
+    return summary
+
+
+@pytest.mark.parametrize(
+    ("expert_reward", "verdict"),
+    [
+        (0.7, "above the open-loop playback baseline"),
+        (0.3, "below the open-loop playback baseline"),
+        (0.505, "level with the open-loop playback baseline"),
+    ],
+)
+def test_expert_verdict_against_playback(expert_reward, verdict):
+    experts = fabricated_summary(expert_reward=expert_reward)["verdicts"]["experts"]
+    assert experts["SYN_wave-0-196"]["verdict"] == verdict
+    assert experts["SYN_wave-0-196"]["playback_reward"] == 0.5
+    assert experts["SYN_squat-0-155"]["verdict"] == "failed to train"
+
+
+@pytest.mark.parametrize(
+    ("fraction", "verdict"), [(0.6, "trails its experts"), (1.2, "beats its experts"), (1.01, "matches its experts")]
+)
+def test_multi_clip_verdict_from_the_fraction_of_experts(fraction, verdict):
+    multi = fabricated_summary(fraction=fraction)["verdicts"]["multi_clip"]
+    assert multi["verdict"] == verdict and multi["fraction_of_expert_reward"] == fraction
+
+
+def test_multi_clip_verdict_without_experts():
+    assert fabricated_summary(fraction=math.nan)["verdicts"]["multi_clip"]["verdict"].startswith("not compared")
+
+
+def test_velocity_verdict_from_reward_per_step_and_the_baseline():
+    velocity = fabricated_summary(decoder_return=40.0, joints_return=20.0)["verdicts"]["velocity_control"]
+    assert velocity["verdict"] == "does not follow the command yet" and velocity["reward_per_step"] == 0.2
+    assert velocity["against_baseline"] == "beats the joint-target baseline"
+    assert velocity["decoder"] == "runs/qs/distill/decoder.safetensors"
+    velocity = fabricated_summary(decoder_return=150.0, joints_return=160.0)["verdicts"]["velocity_control"]
+    assert velocity["verdict"] == "follows the command" and velocity["reward_per_step"] == 0.75
+    assert velocity["against_baseline"] == "trails the joint-target baseline"
+
+
+def test_printed_summary_says_the_verdicts(capsys):
+    print_summary(fabricated_summary(expert_reward=0.3))
+    out = capsys.readouterr().out
+    assert "SYN_wave-0-196 below the open-loop playback baseline" in out
+    assert "multi-clip policy: trails its experts (0.600 of their normalised reward" in out
+    assert "does not follow the command yet (reward per step 0.200, needs 0.5)" in out
+    assert "beats the joint-target baseline (return 40.0 vs 20.0)" in out
+    assert "decoder file: runs/qs/distill/decoder.safetensors" in out
+    assert "quickstart took 10.0 min" in out
+
+
+def test_printed_times_of_a_rerun(capsys):
+    summary = fabricated_summary()
+    summary["runs"].append({"seconds": 1.5, "stages_run": [], "finished": True, "settings": "a"})
+    print_summary(summary)
+    out = capsys.readouterr().out
+    assert "quickstart took 10.0 min; this run 1.5 s (stages run: none; every stage read from an earlier run)" in out
+
+
+def test_plots_scale_and_label_what_they_show(tmp_path, monkeypatch):
+    figures = {}
+
+    def keep(figure, path: Path) -> str:
+        figures[path.name] = figure
+        return str(path)
+
+    monkeypatch.setattr(plots, "_save_figure", keep)
+    steps = list(range(10, 510, 10))
+    loss = [295.0, 120.0, 40.0] + [-75.0 + 0.01 * i for i in range(47)]
+    history = {"step": steps, "loss": loss, "mse": [0.1 / (i + 1) for i in range(50)], "kl": [3.0] * 50}
+    (tmp_path / "history.json").write_text(json.dumps(history))
+    distilled = {
+        "history": str(tmp_path / "history.json"),
+        "nll_floor": 56 * (math.log(0.1) + 0.5 * math.log(2 * math.pi)),
+        "action_size": 56,
+        "action_std": 0.1,
+        "kl_weight": 0.1,
+        "weighting": "rwr",
+    }
+    progress = tmp_path / "progress.csv"
+    progress.write_text("time/total_timesteps,rollout/ep_rew_mean\n2048,3.0\n4096,5.0\n")
+    run = {"progress": str(progress), "steps": 4096, "mean_return": 6.0, "std_return": 1.0, "episodes": 5}
+    plots.plots_stage(tmp_path, distilled, {"decoder": run, "joints": run})
+    linear, log = figures["distill_loss.png"].axes
+    assert linear.get_ylim()[1] < 0 and "cut off" in linear.get_title()  # 295 no longer sets the scale
+    assert log.get_yscale() == "log"
+    text = " ".join(t.get_text() for t in figures["distill_loss.png"].texts)
+    assert "negative because that standard deviation is small" in text and "-77.5" in text
+    (axis,) = figures["velocity_control.png"].axes
+    labels = " ".join(axis.get_legend_handles_labels()[1])
+    assert "training episodes (stochastic)" in labels and "evaluation (deterministic, 5 episodes" in labels
