@@ -22,11 +22,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import h5py
 import numpy as np
 
 from distill.dataset import schema
-from distill.dataset.reader import dataset_files
+from distill.dataset.reader import RolloutDataset, dataset_files
 from foundation.atomic import atomic_path
 
 METRICS_FILE = "dataset_metrics.npz"
@@ -39,45 +38,29 @@ def metrics_path(folder: str | os.PathLike) -> Path:
 
 def dataset_metrics(files: list[Path]) -> dict[str, object]:
     """MoCapAct's dataset metrics over rollout files (module docstring), pooled exactly by observation rows."""
-    totals: dict[str, np.ndarray] = {}
-    squares: dict[str, np.ndarray] = {}
-    rows = 0.0
-    returns: dict[str, float] = {}
-    values: dict[str, np.ndarray] = {}
-    advantages: dict[str, np.ndarray] = {}
-    for path in files:
-        where = str(path)
-        with h5py.File(path, "r") as f:
-            layout = schema.validate(f, where)
-            stats = schema.group_at(f, schema.STATS, where)
-            count = float(schema.dataset_at(stats, "count", where)[()])
-            per_row = schema.actions_per_row_statistics(layout.version)
-            has_actions = schema.ACTION_COUNT in stats
-            actions = float(schema.dataset_at(stats, schema.ACTION_COUNT, where)[()]) if has_actions else count
-            for name in ("proprio", "act", "mean_act"):
-                weight = count if (name == "proprio" or per_row) else actions  # back to sums
-                mean = np.asarray(schema.dataset_at(stats, f"{name}_mean", where)[...], dtype=np.float64)
-                var = np.asarray(schema.dataset_at(stats, f"{name}_var", where)[...], dtype=np.float64)
-                totals[name] = totals.get(name, 0.0) + weight * mean
-                squares[name] = squares.get(name, 0.0) + weight * (var + mean**2)
-            rows += count
-            for snippet in layout.snippets:
-                episodes = range(layout.n_start + layout.n_rsi)
-                for table, name in ((values, schema.VALUES), (advantages, schema.ADVANTAGES)):
-                    table[snippet] = np.concatenate(
-                        [schema.dataset_at(f, f"{snippet}/{i}/{name}", where)[...] for i in episodes]
-                    )
-                normalised = [
-                    schema.dataset_at(f, f"{snippet}/{group}/{schema.NORM_EPISODE_RETURNS}", where)[...]
-                    for group in (schema.START_METRICS, schema.RSI_METRICS)
-                ]
-                returns[snippet] = float(np.mean(np.concatenate(normalised)))  # MoCapAct's mean when S == R
-    metrics: dict[str, object] = {}
-    for name in ("proprio", "act", "mean_act"):
-        mean = totals[name] / rows
-        metrics[f"{name}_mean"] = mean
-        metrics[f"{name}_var"] = np.clip(squares[name] / rows - mean**2, 0.0, None)
-    metrics["count"] = int(rows)
+    dataset = RolloutDataset(files)
+    try:
+        statistics = dataset.statistics(actions_per_row=True)
+        returns: dict[str, float] = {}
+        values: dict[str, np.ndarray] = {}
+        advantages: dict[str, np.ndarray] = {}
+        for snippet in dataset.snippets():
+            episodes = sorted(dataset.episodes_of(snippet), key=lambda e: e.index)  # start episodes first
+            values[snippet] = np.concatenate([dataset.read(e, schema.VALUES) for e in episodes])
+            advantages[snippet] = np.concatenate([dataset.read(e, schema.ADVANTAGES) for e in episodes])
+            f, where = dataset.file(episodes[0].file), str(dataset.files[episodes[0].file])
+            normalised = [
+                schema.dataset_at(f, f"{snippet}/{group}/{schema.NORM_EPISODE_RETURNS}", where)[...]
+                for group in (schema.START_METRICS, schema.RSI_METRICS)
+            ]
+            returns[snippet] = float(np.mean(np.concatenate(normalised)))  # MoCapAct's mean when S == R
+    finally:
+        dataset.close()
+    metrics: dict[str, object] = {
+        name: getattr(statistics, name)
+        for name in ("proprio_mean", "proprio_var", "act_mean", "act_var", "mean_act_mean", "mean_act_var")
+    }
+    metrics["count"] = statistics.count
     for name, table in (("snippet_returns", returns), ("values", values), ("advantages", advantages)):
         metrics[name] = np.array(dict(sorted(table.items())), dtype=object)
     return metrics

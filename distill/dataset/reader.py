@@ -233,12 +233,16 @@ class RolloutDataset:
                 }
         return out
 
-    def statistics(self) -> Statistics:
+    def statistics(self, actions_per_row: bool = False) -> Statistics:
         """Statistics pooled over files (proprioception per observation row, actions per action).
 
         Each file's stored means and variances are turned back into sums and pooled; action
         statistics stored over observation rows (MoCapAct's files, our version 2) are rescaled
         to the number of actions, counted from the file (``action_count``, else the episode lengths).
+
+        Args:
+            actions_per_row: Divide the action sums by the observation rows instead, as
+                MoCapAct's ``dataset_metrics.npz`` does.
         """
         sums: dict[str, np.ndarray] = {}
         squares: dict[str, np.ndarray] = {}
@@ -249,10 +253,11 @@ class RolloutDataset:
             rows = float(schema.dataset_at(stats, "count", where)[()])
             actions = self._action_count(number, stats)
             per_row = schema.actions_per_row_statistics(layout.version)
+            action_count = rows if actions_per_row else actions
             for name, divisor, count in (
                 ("proprio", rows, rows),
-                ("act", rows if per_row else actions, actions),
-                ("mean_act", rows if per_row else actions, actions),
+                ("act", rows if per_row else actions, action_count),
+                ("mean_act", rows if per_row else actions, action_count),
             ):
                 mean = np.asarray(schema.dataset_at(stats, f"{name}_mean", where)[...], dtype=np.float64)
                 var = np.asarray(schema.dataset_at(stats, f"{name}_var", where)[...], dtype=np.float64)
