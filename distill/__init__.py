@@ -4,7 +4,8 @@
 * :mod:`distill.dataset`: the rollout dataset (schema, writer, reader, window sampler);
 * :mod:`distill.npmp`: the multi-clip policy; its training writes the frozen decoder file;
 * :mod:`distill.gpt`: the motion GPT and motion completion;
-* :mod:`distill.trainer`: the one supervised loop NPMP and GPT training share.
+* :mod:`distill.trainer`: the one supervised loop NPMP and GPT training share
+  (its settings in :mod:`distill.trainer_config`).
 """
 
 from typing import TYPE_CHECKING
@@ -12,20 +13,22 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
-    from distill.dataset.config import RolloutConfig
+    from distill.dataset.config import RolloutConfig, SamplerConfig
     from distill.dataset.reader import RolloutDataset
-    from distill.dataset.sampler import SamplerConfig
     from distill.dataset.writer import rollout_experts
     from distill.experts.config import ExpertConfig
     from distill.experts.loading import load_expert
     from distill.experts.policy import ExpertPolicy
     from distill.experts.training import train_expert
     from distill.gpt.completion import complete_motions
-    from distill.gpt.model import GptConfig, MotionGpt, load_gpt
+    from distill.gpt.config import GptConfig
+    from distill.gpt.model import MotionGpt, load_gpt
     from distill.gpt.training import train_gpt
-    from distill.npmp.model import NpmpConfig, NpmpPolicy, load_policy
+    from distill.npmp.config import NpmpConfig
+    from distill.npmp.model import NpmpPolicy, load_policy
     from distill.npmp.training import train_npmp
-    from distill.trainer import TrainerConfig, TrainingOutcome
+    from distill.trainer import TrainingOutcome
+    from distill.trainer_config import TrainerConfig
 
 __all__ = [
     "ExpertConfig",
@@ -54,14 +57,14 @@ __getattr__, __dir__ = lazy_exports(
     {
         "ExpertConfig": "distill.experts.config",
         "ExpertPolicy": "distill.experts.policy",
-        "GptConfig": "distill.gpt.model",
+        "GptConfig": "distill.gpt.config",
         "MotionGpt": "distill.gpt.model",
-        "NpmpConfig": "distill.npmp.model",
+        "NpmpConfig": "distill.npmp.config",
         "NpmpPolicy": "distill.npmp.model",
         "RolloutConfig": "distill.dataset.config",
         "RolloutDataset": "distill.dataset.reader",
-        "SamplerConfig": "distill.dataset.sampler",
-        "TrainerConfig": "distill.trainer",
+        "SamplerConfig": "distill.dataset.config",
+        "TrainerConfig": "distill.trainer_config",
         "TrainingOutcome": "distill.trainer",
         "complete_motions": "distill.gpt.completion",
         "load_expert": "distill.experts.loading",

@@ -37,7 +37,9 @@ import torch.distributed as dist
 from torch import nn
 from tqdm.auto import tqdm
 
+from distill.trainer_config import TrainerConfig  # defined there (light), used and re-exported here
 from foundation.atomic import atomic_path, write_json
+from foundation.interrupts import stop_requests
 from foundation.resume import SettingsMismatchError, check_same_settings, settings_record
 
 CHECKPOINT = "checkpoint.pt"
@@ -46,33 +48,6 @@ HISTORY = "history.json"
 
 _FREE = ("steps", "log_every", "checkpoint_every", "device")
 """Trainer fields a resumed run may change (more steps, other logging or device)."""
-
-
-@dataclass(frozen=True)
-class TrainerConfig:
-    """Settings of the training loop (defaults: the seed's Table 2).
-
-    Attributes:
-        steps: Optimiser steps in total.
-        batch_size: Windows per step (summed over all DDP processes).
-        learning_rate: Adam step size.
-        weight_decay: Decoupled weight decay (AdamW when positive).
-        grad_clip: Gradient norm clipping value.
-        log_every: Steps between log lines.
-        checkpoint_every: Steps between checkpoints.
-        device: ``auto`` (CUDA when available), ``cpu`` or ``cuda``.
-        seed: Seed of initialisation and sampling.
-    """
-
-    steps: int = 50_000
-    batch_size: int = 256
-    learning_rate: float = 5e-4
-    weight_decay: float = 0.0
-    grad_clip: float = 1.0
-    log_every: int = 50
-    checkpoint_every: int = 1000
-    device: str = "auto"
-    seed: int = 0
 
 
 CheckpointMismatchError = SettingsMismatchError
@@ -161,6 +136,7 @@ def train(
 
     Raises:
         CheckpointMismatchError: The folder holds a checkpoint of other settings.
+        TrainingStopped: Ctrl-C or ``SIGTERM`` arrived; the checkpoint of the step reached is saved.
     """
     started = time.perf_counter()
     out = Path(out)
@@ -171,16 +147,24 @@ def train(
     resume_settings = {"trainer": {k: v for k, v in asdict(config).items() if k not in _FREE}, **settings}
     step, history = _resume(out / CHECKPOINT, resume_settings, config, model, optimizer)
     resumed_from = step
+    if step and place.is_main and progress:
+        print(f"resuming {out} from step {step} of {config.steps}")
     trained = nn.parallel.DistributedDataParallel(model) if place.world_size > 1 else model
     model.train()
     log = _Log(out, history, place, step, config, progress, description)
     stream = batches(_sampling_seed(config.seed, place.rank, step), config.batch_size // place.world_size, device)
-    while step < config.steps:
-        loss, grad_norm, values = _optimiser_step(trained, model, optimizer, next(stream), config.grad_clip, step)
-        step += 1
-        log.step(step, {"loss": loss, "grad_norm": grad_norm, **values})
-        if place.is_main and (step % config.checkpoint_every == 0 or step == config.steps):
-            _save_checkpoint(out, model, optimizer, step, resume_settings, history)
+    with stop_requests() as stop:
+        while step < config.steps:
+            loss, grad_norm, values = _optimiser_step(trained, model, optimizer, next(stream), config.grad_clip, step)
+            step += 1
+            log.step(step, {"loss": loss, "grad_norm": grad_norm, **values})
+            stopping = stop.requested and place.world_size == 1  # under torchrun, every replica ends as it is told
+            if place.is_main and (step % config.checkpoint_every == 0 or step == config.steps or stopping):
+                _save_checkpoint(out, model, optimizer, step, resume_settings, history)
+            if stopping:
+                log.close()
+                where = f"{description}: stopped at step {step} of {config.steps}"
+                raise stop.stop(where, "run the same command again")
     log.close()
     _end_process(place)
     final = history["loss"][-1] if history["loss"] else math.nan

@@ -1,9 +1,9 @@
-"""A brand-new task on top of a pretrained decoder: turn to face a commanded heading.
+"""A brand-new task on top of a pretrained decoder: hold the left hand up or down, as commanded.
 
 Neither go-to-target nor velocity control: the humanoid starts standing, a
-heading is drawn at random, and each step it stays on its feet pays how well the
-pelvis faces that heading, ``(1 + cos(error)) / 2`` in [0, 1]: staying up is
-worth something, facing the heading doubles it.
+command (up: above the head; down: beside the hip) is drawn each episode, and
+each step it stays on its feet pays ``1 - |height to go|`` (at least 0) for its
+left hand. The policy must read the command: no single latent serves both.
 The task is a config dataclass and a class of three methods; one ``register``
 call makes it a task like the built-in ones (``tasks.make``, its Gymnasium id,
 ``transfer train --task``, ``record --task``), and one ``train_transfer`` call
@@ -15,10 +15,10 @@ one; ``--steps 100000`` trains longer, resuming in ``--out``).
 """
 
 import argparse
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 import tasks
@@ -29,40 +29,44 @@ from tasks.downstream.walker_task import WalkerTaskEnv
 
 
 @dataclass(frozen=True)
-class FaceHeadingConfig:
-    """Settings of :class:`FaceHeading` (``tasks.make("face_heading", max_steps=100)`` changes them)."""
+class RaiseHandConfig:
+    """Settings of :class:`RaiseHand` (``tasks.make("raise_hand", max_steps=100)`` changes them)."""
 
     max_steps: int = 300
+    up: float = 1.9  # left-hand height the command "up" asks for (above the head), metres
+    down: float = 0.9  # ... and "down" (beside the hip)
 
 
-class FaceHeading(WalkerTaskEnv):
-    """Turn on the spot until the pelvis faces a random heading."""
+class RaiseHand(WalkerTaskEnv):
+    """Hold the left hand up or down, as a command drawn at the start of each episode says."""
 
-    def __init__(self, config: FaceHeadingConfig) -> None:
-        super().__init__({"heading_error": 2}, config.max_steps)  # task observation: (sin, cos) of the error
-        self._heading = 0.0
+    def __init__(self, config: RaiseHandConfig) -> None:
+        super().__init__({"hand_command": 2}, config.max_steps)  # task observation: (command, height to go)
+        self.config = config
+        self._hand = mujoco.mj_name2id(self.walker.model, mujoco.mjtObj.mjOBJ_BODY, "walker/lhand")
+        self._target = config.up
 
-    def _error(self) -> float:
-        forward = self.data.xmat[self.walker.root_body].reshape(3, 3)[:, 0]  # pelvis x axis in the world
-        return self._heading - math.atan2(forward[1], forward[0])
+    def _height_to_go(self) -> float:
+        return self._target - float(self.data.xpos[self._hand][2])
 
     def _task_reset(self) -> tuple[np.ndarray, float]:
-        self._heading = float(self.np_random.uniform(-math.pi, math.pi))
+        self._target = self.config.up if self.np_random.random() < 0.5 else self.config.down
         return np.zeros(2), 0.0  # start at the origin, facing +x
 
     def _task_step(self) -> tuple[float, bool, dict]:
-        return (1.0 + math.cos(self._error())) / 2, False, {"heading_error": self._error()}
+        return max(0.0, 1.0 - abs(self._height_to_go())), False, {"height_to_go": self._height_to_go()}
 
     def _task_observation(self) -> dict[str, np.ndarray]:
-        return {"heading_error": np.array([math.sin(self._error()), math.cos(self._error())])}
+        command = 1.0 if self._target == self.config.up else -1.0
+        return {"hand_command": np.array([command, self._height_to_go()])}
 
 
-tasks.register("face_heading", FaceHeadingConfig, FaceHeading, "turn on the spot to face a random heading")
+tasks.register("raise_hand", RaiseHandConfig, RaiseHand, "hold the left hand up or down, as commanded")
 
 
 def untrained_score(decoder: str, episodes: int, max_steps: int) -> float:
     """Reward per step of the decoder driven by z = 0: what a freshly initialised policy does."""
-    env = LatentActionEnv(tasks.make("face_heading", max_steps=max_steps), load_decoder(decoder))
+    env = LatentActionEnv(tasks.make("raise_hand", max_steps=max_steps), load_decoder(decoder))
     total = steps = 0.0
     for episode in range(episodes):  # the same seeds as evaluate_transfer's episodes
         env.reset(seed=episode)
@@ -74,10 +78,10 @@ def untrained_score(decoder: str, episodes: int, max_steps: int) -> float:
 
 
 def main(argv: list[str] | None = None) -> float:
-    """Trains a high-level policy for ``face_heading``; returns its mean facing reward per step."""
+    """Trains a high-level policy for ``raise_hand``; returns its mean reward per step."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--decoder", required=True, help="a decoder file (distill train or decoder import-mocapact)")
-    parser.add_argument("--out", type=Path, default=Path("runs/face_heading"), help="output folder (resumable)")
+    parser.add_argument("--out", type=Path, default=Path("runs/raise_hand"), help="output folder (resumable)")
     parser.add_argument("--steps", type=int, default=8192, help="high-level environment steps")
     parser.add_argument("--n-envs", type=int, default=2, help="environments, each in its own process")
     parser.add_argument("--hidden", type=int, default=256)
@@ -95,16 +99,17 @@ def main(argv: list[str] | None = None) -> float:
         device="cpu",
     )
     baseline = untrained_score(args.decoder, episodes=5, max_steps=100)
-    policy = train_transfer("face_heading", args.out, args.decoder, config, {"max_steps": 200})
+    policy = train_transfer("raise_hand", args.out, args.decoder, config, {"max_steps": 200})
 
-    # How well does it face the heading now? Reward per step over the same episodes as the baseline.
+    # How well does it follow the command now? Reward per step over the same episodes as the baseline.
     result = evaluate_transfer(policy, episodes=5, max_steps=100)
     score = result.mean_return / result.mean_length
     print(
-        f"reward per step (1 = facing the heading throughout): untrained {baseline:.3f}, after {args.steps} steps "
-        f"{score:.3f}, {result.mean_length:.0f} steps on its feet of 100; train longer with --steps 100000"
+        f"reward per step (1 = the hand where asked, throughout): untrained {baseline:.3f}, "
+        f"after {args.steps} steps {score:.3f}, {result.mean_length:.0f} steps on its feet of 100; "
+        "train longer with --steps 100000"
     )
-    recording = record("face_heading", str(policy), args.out / "face_heading.rrd", overrides={"max_steps": 100})
+    recording = record("raise_hand", str(policy), args.out / "raise_hand.rrd", overrides={"max_steps": 100})
     print(f"policy: {policy}; watch it: mocap-hierarchy view {recording['path']}")
     return score
 

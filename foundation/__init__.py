@@ -7,7 +7,8 @@ modules that build networks or read model files, and only when they are used):
 * :mod:`foundation.fingerprints`: file SHA-256 and settings fingerprints;
 * :mod:`foundation.resume`: one check that a checkpoint was written with the same settings;
 * :mod:`foundation.described_file`: tensors plus a JSON description in one safetensors file;
-* :mod:`foundation.networks`: the MLP layouts of every model file;
+* :mod:`foundation.networks`: the MLP layouts of every model file
+  (:mod:`foundation.activations`: the activations' names, without torch);
 * :mod:`foundation.provenance`: date and library version stamped into files;
 * :mod:`foundation.sb3`: the one stable-baselines3 PPO builder and its save helpers;
 * :mod:`foundation.lockstep`: several environments stepped for one batched policy call;
@@ -23,6 +24,7 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports  # the one eager import (standard library only)
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from foundation.activations import ACTIVATION_NAMES
     from foundation.atomic import atomic_path, write_json
     from foundation.config_cli import add_dataclass_arguments, dataclass_from_args
     from foundation.described_file import read_described, write_described
@@ -35,6 +37,7 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
 
 __all__ = [
     "ACTIVATIONS",
+    "ACTIVATION_NAMES",
     "Lockstep",
     "PpoSettings",
     "SettingsMismatchError",
@@ -64,6 +67,7 @@ __getattr__, __dir__ = lazy_exports(
     globals(),
     {
         "ACTIVATIONS": "foundation.networks",
+        "ACTIVATION_NAMES": "foundation.activations",
         "Lockstep": "foundation.lockstep",
         "PpoSettings": "foundation.sb3",
         "SettingsMismatchError": "foundation.resume",

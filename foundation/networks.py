@@ -11,8 +11,10 @@ from collections.abc import Sequence
 
 from torch import nn
 
-ACTIVATIONS: dict[str, type[nn.Module]] = {"elu": nn.ELU, "relu": nn.ReLU, "tanh": nn.Tanh}
-"""Hidden-layer activations a model file may name."""
+from foundation.activations import ACTIVATION_NAMES
+
+ACTIVATIONS: dict[str, type[nn.Module]] = dict(zip(ACTIVATION_NAMES, (nn.ELU, nn.ReLU, nn.Tanh), strict=True))
+"""Hidden-layer activations a model file may name: :data:`foundation.activations.ACTIVATION_NAMES`, as modules."""
 
 
 def hidden_stack(input_size: int, hidden_layers: Sequence[int], activation: str, layer_norm: bool = False):

@@ -4,23 +4,26 @@
   :func:`load_decoder` (one safetensors file, no pickle);
 * :mod:`hierarchy.latent_env`: any walker task driven by a latent ``z`` (single env and VecEnv);
 * :mod:`hierarchy.task_policy`: the pickle-free high-level policy file;
-* :mod:`hierarchy.transfer`: high-level PPO on a registered task or your own env factory;
+* :mod:`hierarchy.transfer`: high-level PPO on a registered task or your own env factory
+  (its settings in :mod:`hierarchy.transfer_config`);
 * :mod:`hierarchy.importers`: MoCapAct's checkpoints converted into decoder files.
 
-Importing this package loads the decoder contract only (torch and safetensors,
-no simulator); the rest is imported when first used. Consumers (tasks, users'
-own code) import only this package, never the distillation trainer.
+Importing this package loads nothing heavy: each name is imported when first
+used (the decoder contract with torch and safetensors only, no simulator).
+Consumers (tasks, users' own code) import only this package, never the
+distillation trainer.
 """
 
 from typing import TYPE_CHECKING
 
 from foundation.lazy import lazy_exports
-from hierarchy.decoder import DecoderFileError, DecoderMismatchError, DecoderSpec, LatentDecoder, load_decoder
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from hierarchy.decoder import DecoderFileError, DecoderMismatchError, DecoderSpec, LatentDecoder, load_decoder
     from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
     from hierarchy.task_policy import TaskPolicy, load_task_policy
-    from hierarchy.transfer import EvaluationSummary, TransferConfig, evaluate_transfer, train_transfer
+    from hierarchy.transfer import EvaluationSummary, evaluate_transfer, train_transfer
+    from hierarchy.transfer_config import TransferConfig
 
 __all__ = [
     "DecoderFileError",
@@ -41,12 +44,17 @@ __all__ = [
 __getattr__, __dir__ = lazy_exports(
     globals(),
     {
+        "DecoderFileError": "hierarchy.decoder",
+        "DecoderMismatchError": "hierarchy.decoder",
+        "DecoderSpec": "hierarchy.decoder",
         "EvaluationSummary": "hierarchy.transfer",
         "LatentActionEnv": "hierarchy.latent_env",
         "LatentActionVecEnv": "hierarchy.latent_env",
+        "LatentDecoder": "hierarchy.decoder",
         "TaskPolicy": "hierarchy.task_policy",
-        "TransferConfig": "hierarchy.transfer",
+        "TransferConfig": "hierarchy.transfer_config",
         "evaluate_transfer": "hierarchy.transfer",
+        "load_decoder": "hierarchy.decoder",
         "load_task_policy": "hierarchy.task_policy",
         "train_transfer": "hierarchy.transfer",
     },

@@ -31,74 +31,18 @@ from tqdm.auto import tqdm
 
 from foundation.atomic import write_json
 from foundation.fingerprints import file_sha256
+from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
 from foundation.provenance import provenance
 from foundation.resume import check_same_settings, settings_record
 from foundation.sb3 import PpoSettings, build_ppo, load_ppo, save_sb3
 from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
+from hierarchy.transfer_config import TransferConfig  # defined there (light), used and re-exported here
 from tasks import registry
 
 POLICY_FILE = "policy.safetensors"
 CHECKPOINT_DIR = "checkpoint"
-
-
-@dataclass(frozen=True)
-class TransferConfig:
-    """High-level PPO settings (defaults: the seed's Table 3).
-
-    Attributes:
-        total_steps: Environment steps in total (high-level steps).
-        n_envs: Parallel environments (actors).
-        steps_per_update: Environment steps per PPO update, over all environments.
-        epochs: PPO epochs per update.
-        minibatch_size: PPO minibatch size.
-        clip_range: PPO clipping parameter.
-        target_kl: KL threshold for early stopping of an update.
-        entropy_coefficient: Entropy bonus.
-        gae_lambda: GAE parameter.
-        gamma: Discount factor.
-        max_grad_norm: Gradient norm clipping value.
-        learning_rate: Adam step size.
-        hidden_layers: Hidden sizes of the policy and value MLPs (tanh).
-        initial_std: Initial policy standard deviation; None takes the seed's
-            (2.5 with a decoder, 0.5 without).
-        max_latent: Bound of each latent element when a decoder is used.
-        steps_per_latent: Low-level steps per high-level action (1 in the seed).
-        normalize_reward: Normalise rewards by a running return estimate (SB3 VecNormalize).
-        subprocess_envs: Step environments in worker processes (at most one per core).
-        checkpoint_every: Environment steps between resumable checkpoints.
-        seed: Seed of environments and policy.
-        device: Torch device of PPO (``auto``, ``cpu``, ``cuda``).
-    """
-
-    total_steps: int = 150_000_000
-    n_envs: int = 32
-    steps_per_update: int = 16_384
-    epochs: int = 10
-    minibatch_size: int = 1024
-    clip_range: float = 0.2
-    target_kl: float = 0.3
-    entropy_coefficient: float = 1e-4
-    gae_lambda: float = 0.95
-    gamma: float = 0.99
-    max_grad_norm: float = 1.0
-    learning_rate: float = 5e-5
-    hidden_layers: tuple[int, ...] = (1024, 1024, 1024)
-    initial_std: float | None = None
-    max_latent: float = 3.0
-    steps_per_latent: int = 1
-    normalize_reward: bool = True
-    subprocess_envs: bool = True
-    checkpoint_every: int = 1_000_000
-    seed: int = 0
-    device: str = "auto"
-
-    def std_for(self, with_decoder: bool) -> float:
-        """The initial standard deviation for the mode."""
-        if self.initial_std is not None:
-            return self.initial_std
-        return 2.5 if with_decoder else 0.5
 
 
 @dataclass(frozen=True)
@@ -175,7 +119,7 @@ def _vec_env(source: TaskSource, decoder: LatentDecoder | None, config: Transfer
 
     use_processes = config.subprocess_envs and config.n_envs > 1
     venv = make_vec_env(
-        source.factory,
+        functools.partial(_worker_env, source.factory) if use_processes else source.factory,
         n_envs=config.n_envs,
         seed=config.seed,
         vec_env_cls=SubprocVecEnv if use_processes else DummyVecEnv,
@@ -184,6 +128,12 @@ def _vec_env(source: TaskSource, decoder: LatentDecoder | None, config: Transfer
     if decoder is not None:
         venv = LatentActionVecEnv(venv, decoder, config.max_latent, config.steps_per_latent)
     return VecNormalize(venv, norm_obs=True, norm_reward=config.normalize_reward, gamma=config.gamma)
+
+
+def _worker_env(factory: Callable[[], gym.Env]) -> gym.Env:
+    """The task in a worker process, which leaves Ctrl-C to the trainer (it stops cleanly and closes us)."""
+    ignore_interrupts_in_worker()
+    return factory()
 
 
 def _ppo_settings(config: TransferConfig, with_decoder: bool) -> PpoSettings:
@@ -237,10 +187,14 @@ def train_transfer(
 
     remaining = config.total_steps - model.num_timesteps
     if remaining > 0:
-        callback = _ProgressAndCheckpoint(
-            config.total_steps, config.checkpoint_every, checkpoint, progress, config.epochs
-        )
-        model.learn(remaining, callback=callback, reset_num_timesteps=False)
+        with stop_requests() as stop:
+            callback = _ProgressAndCheckpoint(
+                config.total_steps, config.checkpoint_every, checkpoint, progress, config.epochs, stop
+            )
+            model.learn(remaining, callback=callback, reset_num_timesteps=False)
+            if stop.requested:
+                venv.close()
+                raise stop.stop(f"transfer: stopped at step {model.num_timesteps}", "run the same command again")
 
     path = _save_policy(out, model, source, decoder, decoder_sha, config)
     _save_resume_files(model, checkpoint)
@@ -322,9 +276,10 @@ def _save_resume_files(model, folder: Path) -> None:
 class _ProgressAndCheckpoint(BaseCallback):
     """A progress bar over environment steps (saying when PPO updates), and resume files every ``every`` steps."""
 
-    def __init__(self, total: int, every: int, folder: Path, progress: bool, epochs: int) -> None:
+    def __init__(self, total: int, every: int, folder: Path, progress: bool, epochs: int, stop: StopFlag) -> None:
         super().__init__()
         self.total, self.every, self.folder, self.progress, self.epochs = total, every, folder, progress, epochs
+        self.stop = stop
 
     def _on_training_start(self) -> None:
         steps = self.model.num_timesteps
@@ -340,6 +295,9 @@ class _ProgressAndCheckpoint(BaseCallback):
         if self.model.num_timesteps >= self.next_save:
             _save_resume_files(self.model, self.folder)
             self.next_save += self.every
+        if self.stop.requested:  # Ctrl-C or SIGTERM: save where we are and leave PPO's loop
+            _save_resume_files(self.model, self.folder)
+            return False
         return True
 
     def _on_rollout_end(self) -> None:

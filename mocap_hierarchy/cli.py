@@ -8,6 +8,7 @@ whose flags come from a heavy module (torch, MuJoCo) adds them when it is chosen
 from __future__ import annotations
 
 import argparse
+import errno
 import importlib
 import importlib.util
 import sys
@@ -15,6 +16,7 @@ from pathlib import Path
 
 from foundation.config_cli import add_subcommands
 from foundation.cores import use_available_cores
+from foundation.interrupts import TrainingStopped
 from mocap_hierarchy import __version__
 from mocap_hierarchy.commands import COMMAND_MODULES
 
@@ -95,7 +97,32 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, FileNotFoundError, KeyError, VideoUnavailableError) as error:
         print(f"mocap-hierarchy {args.command}: error: {error_message(error)}", file=sys.stderr)
         return 2
+    except OSError as error:  # disk full, read-only or not permitted: name the file and keep what is finished
+        print(f"mocap-hierarchy {args.command}: error: {os_error_message(error)}", file=sys.stderr)
+        return 1
+    except TrainingStopped as stopped:  # Ctrl-C or SIGTERM, checkpoint saved
+        print(f"mocap-hierarchy {args.command}: {stopped}", file=sys.stderr)
+        return stopped.exit_status
+    except KeyboardInterrupt:  # a second Ctrl-C, or a job between its checkpoints
+        print(
+            f"mocap-hierarchy {args.command}: interrupted; finished files are kept, "
+            "and running the same command again resumes from the last checkpoint",
+            file=sys.stderr,
+        )
+        return 130
     return 0
+
+
+def os_error_message(error: OSError) -> str:
+    """What went wrong with which file, and what to do about it."""
+    where = f" ({error.filename})" if error.filename else ""
+    if error.errno == errno.ENOSPC:
+        advice = "free some space (or choose another output folder) and run the same command again to resume"
+    elif error.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
+        advice = "choose an output folder you can write to"
+    else:
+        advice = "finished files are kept; fix the cause and run the same command again to resume"
+    return f"{error.strerror or error}{where}: {advice}"
 
 
 def error_message(error: Exception) -> str:

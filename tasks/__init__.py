@@ -5,13 +5,15 @@
 * :mod:`tasks.downstream`: go-to-target, velocity control, motion completion, the walker-task base;
 * :mod:`tasks.viz`: rerun recordings and videos;
 * :mod:`tasks.walker`, :mod:`tasks.observables`, :mod:`tasks.simulation`, :mod:`tasks.geometry`:
-  the CMU humanoid, its observables, the control step, quaternion math;
+  the CMU humanoid, its observables, the control step, quaternion math
+  (:mod:`tasks.observable_sets`: the observables' names, sizes and sets as plain data);
 * :mod:`tasks.registry`: ``make``, ``register`` and the Gymnasium ids.
 
 ``tasks.make(name, **overrides)`` builds any registered task (built-in, registered
 at run time with :func:`register`, or installed through the ``mocap_hierarchy.tasks``
 entry-point group). This package imports nothing above :mod:`foundation`, and
-importing it is cheap (Gymnasium, for the ids; MuJoCo loads with the first environment).
+importing it is cheap: MuJoCo loads with the first environment, Gymnasium when it is
+first imported (the ids are registered then).
 """
 
 import ctypes.util

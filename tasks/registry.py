@@ -7,7 +7,7 @@ Unknown names or fields raise errors that list the valid ones.
 
 Your own task joins the built-in ones in one call::
 
-    tasks.register("face_heading", FaceHeadingConfig, FaceHeading, "turn to a heading")
+    tasks.register("raise_hand", RaiseHandConfig, RaiseHand, "hold the left hand up or down")
 
 after which ``tasks.make``, its Gymnasium id, ``mocap-hierarchy tasks``,
 ``transfer train --task`` and ``record --task`` all know it. An installed
@@ -21,20 +21,29 @@ Plugins load on the first look-up of a name the registry does not know, or on
 :func:`task_names`; their Gymnasium ids exist from then on.
 
 Built-in entries name their classes as ``"module:Name"`` strings, resolved on
-first use, so importing the registry does not load MuJoCo.
+first use, so importing the registry does not load MuJoCo. Nor does it load
+Gymnasium: the ids are registered as soon as Gymnasium is imported (at once if
+it already is, otherwise right after its own ``import``, wherever that happens),
+so ``import tasks`` then ``gymnasium.make(id)`` works as before.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import importlib
+import importlib.abc
+import importlib.machinery
+import importlib.util
 import re
-from collections.abc import Callable
+import sys
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from importlib import metadata
-from typing import Any
+from types import ModuleType
+from typing import TYPE_CHECKING, Any
 
-import gymnasium as gym
+if TYPE_CHECKING:  # Gymnasium loads when ids are registered (see the module docstring), not with the registry
+    import gymnasium as gym
 
 GYM_NAMESPACE = "MocapHierarchy"
 ENTRY_POINT_GROUP = "mocap_hierarchy.tasks"
@@ -172,7 +181,7 @@ def register(
     the entry; another task under a taken name is refused.
 
     Args:
-        name: Registry name: lower case, digits and underscores (``face_heading``).
+        name: Registry name: lower case, digits and underscores (``raise_hand``).
         config_type: The config dataclass the task is built from; ``tasks.make(name, field=value)``
             replaces its fields.
         build: Makes the environment from a config (usually the env class itself).
@@ -187,7 +196,7 @@ def register(
         TypeError: ``config_type`` is not a dataclass.
     """
     if not _NAME.match(name):
-        raise ValueError(f"task name {name!r}: use lower case letters, digits and underscores (e.g. 'face_heading')")
+        raise ValueError(f"task name {name!r}: use lower case letters, digits and underscores (e.g. 'raise_hand')")
     resolved = _resolve(config_type)
     if not (isinstance(resolved, type) and dataclasses.is_dataclass(resolved)):
         raise TypeError(f"task {name!r}: config_type must be a dataclass type, got {resolved!r}")
@@ -253,14 +262,60 @@ def make(name: str, **overrides: Any) -> gym.Env:
 
 
 def _register_gym_id(task: TaskEntry) -> None:
+    import gymnasium as gym
+
     if task.gym_id not in gym.registry:
         gym.register(id=task.gym_id, entry_point="tasks.registry:make", kwargs={"name": task.name})
 
 
 def register_with_gymnasium() -> None:
-    """Registers every task under its Gymnasium id (idempotent; done when this module is imported)."""
+    """Registers every task under its Gymnasium id (idempotent; done as soon as Gymnasium is imported)."""
     for task in REGISTRY.values():
         _register_gym_id(task)
 
 
-register_with_gymnasium()
+class _RegisterAfterGymnasium(importlib.abc.MetaPathFinder):
+    """Finds ``gymnasium`` like the other finders, with a loader that registers every id once it has run."""
+
+    def find_spec(
+        self, fullname: str, path: Sequence[str] | None = None, target: ModuleType | None = None
+    ) -> importlib.machinery.ModuleSpec | None:
+        """The normal spec of ``gymnasium`` (its loader wrapped); None for every other module."""
+        if fullname != "gymnasium":
+            return None
+        if self in sys.meta_path:  # one use: the nested look-up below, and any later one, skips this finder
+            sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(fullname)
+        if spec is not None and spec.loader is not None:
+            spec.loader = _ThenRegister(spec.loader)
+        return spec
+
+
+class _ThenRegister(importlib.abc.Loader):
+    """Gymnasium's own loader, then :func:`register_with_gymnasium` (anything else goes to the loader)."""
+
+    def __init__(self, loader: importlib.abc.Loader) -> None:
+        self._loader = loader
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType | None:
+        """The wrapped loader's module."""
+        return self._loader.create_module(spec)
+
+    def exec_module(self, module: ModuleType) -> None:
+        """Runs ``gymnasium/__init__.py``, then registers the ids."""
+        self._loader.exec_module(module)
+        register_with_gymnasium()
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._loader, name)
+
+
+def _register_when_gymnasium_loads() -> None:
+    """Registers the ids now if Gymnasium is loaded, otherwise right after it is first imported."""
+    if "gymnasium" in sys.modules:
+        register_with_gymnasium()
+    elif not any(isinstance(finder, _RegisterAfterGymnasium) for finder in sys.meta_path):
+        sys.meta_path.insert(0, _RegisterAfterGymnasium())
+
+
+_register_when_gymnasium_loads()

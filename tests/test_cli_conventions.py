@@ -29,9 +29,17 @@ LIGHT_HELP = [
     "transfer --help",
     "decoder --help",
     "record --help",
+    "quickstart --help",
+    "download --help",
+    "download cmu --help",
+    "distill train --help",
+    "gpt train --help",
+    "gpt complete --help",
+    "transfer train --help",
 ]
-"""Help that needs no heavy module (``quickstart``, ``download``, ``distill train``, ``gpt train``/``complete``
-and ``transfer train`` take their flags from configs beside torch, MuJoCo or Gymnasium)."""
+"""Help that needs no heavy module, commands whose flags come from config dataclasses included: those
+configs live in light modules (``distill/trainer_config.py``, ``distill/*/config.py``,
+``hierarchy/transfer_config.py``, ``mocap_hierarchy/quickstart/config.py``)."""
 
 
 def every_parser(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()) -> Iterator[tuple[str, ...]]:

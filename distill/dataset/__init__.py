@@ -5,9 +5,9 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
-    from distill.dataset.config import RolloutConfig
+    from distill.dataset.config import RolloutConfig, SamplerConfig
     from distill.dataset.reader import EpisodeRef, RolloutDataset, Statistics, dataset_files
-    from distill.dataset.sampler import SamplerConfig, WindowDataset
+    from distill.dataset.sampler import WindowDataset
     from distill.dataset.schema import DatasetError
     from distill.dataset.writer import rollout_experts, rollout_jobs
 
@@ -31,7 +31,7 @@ __getattr__, __dir__ = lazy_exports(
         "EpisodeRef": "distill.dataset.reader",
         "RolloutConfig": "distill.dataset.config",
         "RolloutDataset": "distill.dataset.reader",
-        "SamplerConfig": "distill.dataset.sampler",
+        "SamplerConfig": "distill.dataset.config",
         "Statistics": "distill.dataset.reader",
         "WindowDataset": "distill.dataset.sampler",
         "dataset_files": "distill.dataset.reader",

@@ -1,7 +1,11 @@
-"""Settings of the rollout dataset's writer (light: the command line builds its flags from them)."""
+"""Settings of the rollout dataset's writer and window sampler (light: the command line builds its flags from them).
+
+:mod:`distill.dataset.writer` and :mod:`distill.dataset.sampler` re-export their class.
+"""
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 
@@ -24,3 +28,34 @@ class RolloutConfig:
     n_envs: int = 8
     seed: int = 0
     trust_pickle: bool = False
+
+
+@dataclass(frozen=True)
+class SamplerConfig:
+    """How windows are cut and weighted.
+
+    Attributes:
+        window: Steps per window (30 for the multi-clip policy, 32 for the GPT).
+        weighting: ``bc``, ``cwr``, ``awr`` or ``rwr``.
+        temperature: Weighting temperature; None takes the seed's for the scheme.
+        actions: ``mean`` (the experts' mean actions, the seed's targets) or ``sampled``.
+        upsample_short_snippets: Draw windows in proportion to ``1 / snippet length``.
+        max_weight: Weights are clipped to this after rescaling.
+        normalize_observations: Standardise observations with the dataset statistics.
+        in_memory: Gather the selected data into memory (None: when it needs less than ``memory_limit_gb``).
+        memory_limit_gb: Size limit of the automatic in-memory choice.
+        cache_dir: For data that stays out of memory: write the selected columns once
+            to memory-mapped ``.npy`` files here and read windows from them (the
+            operating system caches what fits). None reads windows from the HDF5 files.
+    """
+
+    window: int = 30
+    weighting: str = "bc"
+    temperature: float | None = None
+    actions: str = "mean"
+    upsample_short_snippets: bool = True
+    max_weight: float = math.inf
+    normalize_observations: bool = False
+    in_memory: bool | None = None
+    memory_limit_gb: float = 8.0
+    cache_dir: str | None = None

@@ -27,11 +27,9 @@ path for training (whole batches gathered in a background thread).
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
 
@@ -40,6 +38,7 @@ import torch
 from torch.utils.data import DataLoader, Dataset, WeightedRandomSampler
 
 from distill.dataset import schema
+from distill.dataset.config import SamplerConfig  # defined there (light), used and re-exported here
 from distill.dataset.reader import RolloutDataset, Statistics
 from foundation.atomic import atomic_path
 from foundation.fingerprints import settings_fingerprint
@@ -47,37 +46,6 @@ from tasks.clips.snippets import MAX_SNIPPET_LENGTH, parse_snippet_id
 
 DEFAULT_TEMPERATURES: dict[str, float | None] = {"bc": None, "cwr": 0.2, "awr": 8.0, "rwr": 4.0}
 """The seed's Table 2 temperatures per weighting scheme."""
-
-
-@dataclass(frozen=True)
-class SamplerConfig:
-    """How windows are cut and weighted.
-
-    Attributes:
-        window: Steps per window (30 for the multi-clip policy, 32 for the GPT).
-        weighting: ``bc``, ``cwr``, ``awr`` or ``rwr``.
-        temperature: Weighting temperature; None takes the seed's for the scheme.
-        actions: ``mean`` (the experts' mean actions, the seed's targets) or ``sampled``.
-        upsample_short_snippets: Draw windows in proportion to ``1 / snippet length``.
-        max_weight: Weights are clipped to this after rescaling.
-        normalize_observations: Standardise observations with the dataset statistics.
-        in_memory: Gather the selected data into memory (None: when it needs less than ``memory_limit_gb``).
-        memory_limit_gb: Size limit of the automatic in-memory choice.
-        cache_dir: For data that stays out of memory: write the selected columns once
-            to memory-mapped ``.npy`` files here and read windows from them (the
-            operating system caches what fits). None reads windows from the HDF5 files.
-    """
-
-    window: int = 30
-    weighting: str = "bc"
-    temperature: float | None = None
-    actions: str = "mean"
-    upsample_short_snippets: bool = True
-    max_weight: float = math.inf
-    normalize_observations: bool = False
-    in_memory: bool | None = None
-    memory_limit_gb: float = 8.0
-    cache_dir: str | None = None
 
 
 class WindowDataset(Dataset):

@@ -1,26 +1,30 @@
-"""Running many independent jobs (expert trainings, rollouts): process pool or Ray.
+"""Running many independent jobs (expert trainings, rollouts): local worker processes or Ray.
 
 Every job is a module-level function called with keyword arguments, so it
 can run in a local worker process or a Ray task alike. Finished jobs are
 skipped (the caller says which are done), a job that raises or whose worker
 dies is retried up to ``max_attempts`` times, and the report lists every
-job's outcome: nothing is dropped silently.
+job's outcome and why an attempt failed: nothing is dropped silently. Locally
+each attempt has a process of its own, so a worker that crashes costs only its
+own job an attempt.
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import signal
 import time
 import traceback
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, as_completed
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
-from typing import Any
+from multiprocessing.connection import Connection, wait
+from multiprocessing.process import BaseProcess
+from typing import Any, cast
 
 from tqdm.auto import tqdm
 
 from foundation.cores import available_cores
+from foundation.interrupts import stop_requests
 
 
 @dataclass(frozen=True)
@@ -62,6 +66,7 @@ class JobReport:
 
 
 def _timed_call(function: Callable[..., Any], kwargs: dict[str, Any]) -> tuple[Any, float]:
+    """Ray's task body: the result and the seconds it took."""
     started = time.perf_counter()
     return function(**kwargs), time.perf_counter() - started
 
@@ -108,30 +113,111 @@ def run_jobs(
 
 
 def _run_locally(pending: list[Job], reports: dict[str, JobReport], max_attempts: int, workers: int, bar) -> None:
+    """Each attempt in its own spawned process, at most ``workers`` at a time.
+
+    One process per attempt (not a shared pool) so that a worker that dies
+    (segfault, ``os._exit``, out of memory) costs only its own job an attempt:
+    a dead worker breaks a ``ProcessPoolExecutor`` for every job queued in it.
+    """
     context = multiprocessing.get_context("spawn")  # no forked torch/MuJoCo state in workers
-    while pending:
-        retry: list[Job] = []
-        with ProcessPoolExecutor(max_workers=min(workers, len(pending)), mp_context=context) as pool:
-            futures = {pool.submit(_timed_call, job.function, job.kwargs): job for job in pending}
-            for future in as_completed(futures):
-                job = futures[future]
-                report = reports[job.name]
-                report.attempts += 1
-                try:
-                    report.result, report.seconds = future.result()
-                    report.status = "ok"
-                    bar.update()
-                except BrokenProcessPool:
-                    # The worker died (crash, out of memory); its pool is unusable.
-                    report.error = "worker process died"
-                    _retry_or_fail(job, report, max_attempts, retry, bar)
-                except Exception:
-                    report.error = traceback.format_exc()
-                    _retry_or_fail(job, report, max_attempts, retry, bar)
-        pending = retry
+    waiting = list(pending)
+    running: dict[Connection, tuple[Job, BaseProcess]] = {}
+    with stop_requests() as stop:
+        try:
+            while waiting or running:
+                while waiting and len(running) < workers and not stop.requested:
+                    job = waiting.pop(0)
+                    receiver, sender = context.Pipe(duplex=False)
+                    process = context.Process(target=_attempt, args=(sender, job.function, job.kwargs), name=job.name)
+                    process.start()
+                    sender.close()  # the child holds the only writer: its death reads as end of file
+                    running[receiver] = (job, process)
+                if stop.requested:
+                    _stop_workers(running)
+                    done = sum(report.status == "ok" for report in reports.values())
+                    raise stop.stop(f"jobs: stopped with {done} of {len(reports)} done", "run the same command again")
+                for receiver in wait(list(running), timeout=0.5):
+                    job, process = running.pop(cast(Connection, receiver))
+                    outcome = _receive(cast(Connection, receiver), process)
+                    report = reports[job.name]
+                    report.attempts += 1
+                    report.seconds = outcome.seconds
+                    if outcome.ok:
+                        report.result, report.status = outcome.value, "ok"
+                        bar.update()
+                    else:
+                        report.error = outcome.value
+                        _retry_or_fail(job, report, max_attempts, waiting, bar)
+        finally:  # a second Ctrl-C, or an error here: leave no orphan workers behind
+            for _, process in running.values():
+                process.kill()
+                process.join()
+
+
+def _stop_workers(running: dict[Connection, tuple[Job, BaseProcess]], grace: float = 300.0) -> None:
+    """Asks every worker to stop (``SIGTERM``: its job saves a checkpoint) and waits for them."""
+    for _, process in running.values():
+        process.terminate()
+    for receiver, (_, process) in list(running.items()):
+        process.join(grace)
+        if process.is_alive():
+            process.kill()
+            process.join()
+        receiver.close()
+        del running[receiver]
+
+
+@dataclass(frozen=True)
+class _Outcome:
+    ok: bool
+    value: Any  # the result, or the error text
+    seconds: float = 0.0
+
+
+def _attempt(sender: Connection, function: Callable[..., Any], kwargs: dict[str, Any]) -> None:
+    """Runs in the worker: calls the job and sends back its result or its traceback.
+
+    Ctrl-C goes to the parent only (it asks the workers to stop with ``SIGTERM``),
+    so a worker hears one stop signal, not two.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    started = time.perf_counter()
+    try:
+        outcome = _Outcome(True, function(**kwargs), time.perf_counter() - started)
+    except BaseException:
+        outcome = _Outcome(False, traceback.format_exc(), time.perf_counter() - started)
+    try:
+        sender.send(outcome)
+    except Exception:  # the result does not pickle
+        sender.send(_Outcome(False, traceback.format_exc(), outcome.seconds))
+    finally:
+        sender.close()
+
+
+def _receive(receiver: Connection, process: BaseProcess) -> _Outcome:
+    """The worker's outcome, or why it died without one."""
+    try:
+        outcome = receiver.recv()
+    except EOFError:
+        process.join()
+        return _Outcome(False, f"worker process died: {_exit_description(process.exitcode)}")
+    finally:
+        receiver.close()
+    process.join()
+    return outcome
+
+
+def _exit_description(exitcode: int | None) -> str:
+    if exitcode is not None and exitcode < 0:
+        try:
+            return f"killed by signal {signal.Signals(-exitcode).name} (exit code {exitcode})"
+        except ValueError:
+            return f"killed by signal {-exitcode}"
+    return f"exited with code {exitcode} before returning a result"
 
 
 def _retry_or_fail(job: Job, report: JobReport, max_attempts: int, retry: list[Job], bar) -> None:
+    """Queues another attempt, or marks the job failed after its last one."""
     if report.attempts < max_attempts:
         retry.append(job)
     else:
@@ -177,9 +263,9 @@ def summarise(reports: list[JobReport]) -> str:
     lines = [f"{'job':<32}{'status':<9}{'attempts':>9}{'seconds':>10}"]
     for report in reports:
         lines.append(f"{report.name:<32}{report.status:<9}{report.attempts:>9}{report.seconds:>10.1f}")
-        if report.status == "failed":
-            last = report.error.strip().splitlines()[-1] if report.error else "unknown error"
-            lines.append(f"    {last}")
+        if report.error:  # failed, or succeeded after failed attempts: say why
+            last = report.error.strip().splitlines()[-1]
+            lines.append(f"    {'last error' if report.status == 'failed' else 'retried after'}: {last}")
     counts = {s: sum(r.status == s for r in reports) for s in ("ok", "skipped", "failed")}
     lines.append(f"{counts['ok']} ok, {counts['skipped']} skipped, {counts['failed']} failed")
     return "\n".join(lines)

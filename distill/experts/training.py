@@ -33,6 +33,7 @@ from distill.experts.fanout import Job
 from distill.experts.files import ExpertDir, expert_dir_for, write_clip_info
 from distill.experts.policy import policy_from_sb3
 from foundation.atomic import write_json
+from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
 from foundation.provenance import provenance
 from foundation.resume import SettingsMismatchError, check_same_settings
 from foundation.sb3 import PpoSettings, build_ppo, load_ppo, save_sb3
@@ -72,6 +73,7 @@ class TrainingResult:
 
 
 def _make_env(tracking: TrackingConfig, seed: int) -> ClipTrackingEnv:
+    ignore_interrupts_in_worker()  # in a SubprocVecEnv worker: Ctrl-C is for the trainer
     env = ClipTrackingEnv(tracking)
     env.reset(seed=seed)
     return env
@@ -117,10 +119,11 @@ def keep_training(state: dict, length: float, reward: float, steps: int, config:
 class _ExpertCallback(BaseCallback):
     """Evaluation, best-model saving, checkpoints, early stopping and a progress bar."""
 
-    def __init__(self, trainer: _Trainer, state: dict) -> None:
+    def __init__(self, trainer: _Trainer, state: dict, stop: StopFlag) -> None:
         super().__init__()
         self.trainer = trainer
         self.state = state
+        self.stop = stop
         self.bar: tqdm | None = None
         self.stop_reason = "budget"
 
@@ -153,6 +156,10 @@ class _ExpertCallback(BaseCallback):
         if self.num_timesteps >= self.state["next_checkpoint"]:
             self.state["next_checkpoint"] += config.checkpoint_every
             self.trainer.checkpoint(model, self.state)
+        if self.stop.requested:  # Ctrl-C or SIGTERM: save where we are and leave PPO's loop
+            self.trainer.checkpoint(model, self.state)
+            self.stop_reason = "stopped"
+            return False
         return continue_training
 
     def _on_rollout_end(self) -> None:
@@ -268,6 +275,7 @@ def train_expert(
 
     Raises:
         ConfigMismatchError: A checkpoint from different settings exists.
+        TrainingStopped: Ctrl-C or ``SIGTERM`` arrived; a checkpoint of the step reached is saved.
         KeyError: The clip file has no such clip (checked before any folder is created).
         ValueError: Malformed settings or snippet id, or steps outside the clip (checked likewise).
     """
@@ -290,11 +298,14 @@ def train_expert(
     model, state = _resume_or_build(expert, vec_env, resume_state, config)
 
     trainer = _Trainer(name, expert, clip_file, config, progress)
-    callback = _ExpertCallback(trainer, state)
-    try:
-        _learn(model, trainer, callback, state, resumed=resume_state is not None)
-    finally:
-        vec_env.close()
+    with stop_requests() as stop:
+        callback = _ExpertCallback(trainer, state, stop)
+        try:
+            _learn(model, trainer, callback, state, resumed=resume_state is not None)
+        finally:
+            vec_env.close()
+        if stop.requested:
+            raise stop.stop(f"expert {name}: stopped at step {model.num_timesteps}", "run the same command again")
     _finish(expert, name, model, state, callback.stop_reason, config)
     return TrainingResult(
         name,
@@ -354,6 +365,7 @@ def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, conf
             learning_rate=settings.learning_rate,
         )
         state = resume_state
+        print(f"resuming {expert.root} from step {model.num_timesteps}")
     else:
         model = build_ppo(VecNormalize(vec_env, norm_obs=True, norm_reward=True, gamma=config.gamma), settings)
         state = {
@@ -375,6 +387,8 @@ def _learn(model: PPO, trainer: _Trainer, callback: _ExpertCallback, state: dict
     remaining = trainer.config.total_steps - model.num_timesteps
     if remaining > 0:
         model.learn(remaining, callback=callback, reset_num_timesteps=not resumed)
+    if callback.stop.requested:
+        return
     if not state["evaluations"] or state["evaluations"][-1]["steps"] != model.num_timesteps:
         trainer.evaluate(model, model.num_timesteps, state)
 

@@ -5,8 +5,9 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
-    from distill.gpt.completion import CompletionConfig, CompletionController, complete_motions
-    from distill.gpt.model import GptConfig, GptFileError, GptSpec, MotionGpt, load_gpt
+    from distill.gpt.completion import CompletionController, complete_motions
+    from distill.gpt.config import CompletionConfig, GptConfig
+    from distill.gpt.model import GptFileError, GptSpec, MotionGpt, load_gpt
     from distill.gpt.training import GptResult, train_gpt
 
 __all__ = [
@@ -25,9 +26,9 @@ __all__ = [
 __getattr__, __dir__ = lazy_exports(
     globals(),
     {
-        "CompletionConfig": "distill.gpt.completion",
+        "CompletionConfig": "distill.gpt.config",
         "CompletionController": "distill.gpt.completion",
-        "GptConfig": "distill.gpt.model",
+        "GptConfig": "distill.gpt.config",
         "GptFileError": "distill.gpt.model",
         "GptResult": "distill.gpt.training",
         "GptSpec": "distill.gpt.model",

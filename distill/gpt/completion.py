@@ -20,47 +20,12 @@ from typing import Protocol
 import numpy as np
 from tqdm.auto import tqdm
 
+from distill.gpt.config import VARIANT_NOISE, CompletionConfig  # defined there (light), used and re-exported here
 from distill.gpt.model import MotionGpt
 from foundation.lockstep import Lockstep
 from tasks.downstream.motion_completion import MotionCompletionConfig, MotionCompletionEnv
 from tasks.observables import flat_batch
 from tasks.walker import build_walker
-
-VARIANT_NOISE = {"deterministic": 0.0, "stochastic": 0.1}
-"""Action noise of each variant (the stochastic one uses the experts' training noise)."""
-
-
-@dataclass(frozen=True)
-class CompletionConfig:
-    """How to measure motion completion.
-
-    Attributes:
-        episodes: Episodes per snippet and variant.
-        prompt_steps: Steps the prompt policy drives from the snippet's start.
-        max_steps: Step limit of an episode, prompt included.
-        variants: ``deterministic`` and/or ``stochastic``.
-        context: ``cache`` (one token per step, the exact sliding-window GPT) or
-            ``window`` (MoCapAct: recompute the last ``block_size`` steps every step).
-        n_envs: Environments stepped in lockstep (one batched GPT call per step).
-        seed: Seed of the action noise.
-    """
-
-    episodes: int = 10
-    prompt_steps: int = 32
-    max_steps: int = 500
-    variants: tuple[str, ...] = ("deterministic", "stochastic")
-    context: str = "cache"
-    n_envs: int = 4
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        unknown = [v for v in self.variants if v not in VARIANT_NOISE]
-        if unknown or not self.variants:
-            raise ValueError(f"variants must be among {', '.join(VARIANT_NOISE)}, got {list(self.variants)}")
-        if self.context not in ("cache", "window"):
-            raise ValueError(f"context must be 'cache' or 'window', got {self.context!r}")
-        if self.episodes < 1:
-            raise ValueError("episodes must be at least 1")
 
 
 class PromptPolicy(Protocol):

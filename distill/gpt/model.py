@@ -44,8 +44,8 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from distill.gpt.config import GptConfig  # defined there (light), used and re-exported here
 from foundation.described_file import read_described, write_described
-from tasks.observables import OBSERVABLE_SETS
 
 GPT_FORMAT = "mocap_hierarchy.motion_gpt"
 GPT_SCHEMA_VERSION = 1
@@ -53,44 +53,6 @@ GPT_SCHEMA_VERSION = 1
 
 class GptFileError(ValueError):
     """A GPT file is unreadable, of another format, or its weights do not fit its architecture."""
-
-
-@dataclass(frozen=True)
-class GptConfig:
-    """The GPT's architecture (seed Table 4).
-
-    Attributes:
-        layers: Transformer blocks.
-        heads: Attention heads per block.
-        embedding_size: Width of the residual stream.
-        block_size: Context: steps each layer attends to (including the current one).
-        embedding_dropout: Dropout on the input embedding.
-        attention_dropout: Dropout on the attention weights.
-        residual_dropout: Dropout on each block's residual branches.
-        rope_base: Base of the rotary position frequencies.
-        observables: The state observables, in input order (seed B.4).
-    """
-
-    layers: int = 8
-    heads: int = 8
-    embedding_size: int = 768
-    block_size: int = 32
-    embedding_dropout: float = 0.1
-    attention_dropout: float = 0.1
-    residual_dropout: float = 0.1
-    rope_base: float = 10_000.0
-    observables: tuple[str, ...] = OBSERVABLE_SETS["gpt"]
-
-    def __post_init__(self) -> None:
-        if self.embedding_size % self.heads:
-            raise ValueError(f"embedding_size {self.embedding_size} is not divisible by heads {self.heads}")
-        if (self.embedding_size // self.heads) % 2:
-            raise ValueError("rotary positions need an even head size (embedding_size / heads)")
-        if self.layers < 1 or self.block_size < 1:
-            raise ValueError("layers and block_size must be at least 1")
-        for name in ("embedding_dropout", "attention_dropout", "residual_dropout"):
-            if not 0.0 <= getattr(self, name) < 1.0:
-                raise ValueError(f"{name} must be in [0, 1)")
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,10 @@ import torch
 
 from distill.dataset.reader import RolloutDataset
 from distill.dataset.sampler import SamplerConfig, WindowDataset
+from distill.gpt.config import (  # defined there (light), used and re-exported here
+    default_gpt_sampler,
+    default_gpt_trainer,
+)
 from distill.gpt.cost import cpu_cost_message
 from distill.gpt.model import GptConfig, GptSpec, MotionGpt
 from distill.trainer import (
@@ -54,19 +58,9 @@ class GptResult:
     outcome: TrainingOutcome
 
 
-def default_gpt_trainer() -> TrainerConfig:
-    """The seed's Table 4 loop: AdamW 3e-6, weight decay 0.1, batch 256, clip 1, 2M steps."""
-    return TrainerConfig(steps=2_000_000, learning_rate=3e-6, weight_decay=0.1, batch_size=256, grad_clip=1.0)
-
-
 def _on_cpu(trainer: TrainerConfig) -> bool:
     """Whether the loop will run on the CPU (``auto`` without CUDA included)."""
     return trainer.device == "cpu" or (trainer.device == "auto" and not torch.cuda.is_available())
-
-
-def default_gpt_sampler(gpt: GptConfig | None = None) -> SamplerConfig:
-    """Windows of the block size, unweighted (plain mean-squared error, as the seed)."""
-    return SamplerConfig(window=(gpt or GptConfig()).block_size, weighting="bc", normalize_observations=True)
 
 
 def train_gpt(

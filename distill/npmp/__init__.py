@@ -5,10 +5,10 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
-    from distill.npmp.config import PolicyEvaluationConfig
+    from distill.npmp.config import NpmpConfig, PolicyEvaluationConfig, default_sampler
     from distill.npmp.evaluation import evaluate_multi_clip, fraction_of_experts
-    from distill.npmp.model import MultiClipPrompt, NpmpConfig, NpmpPolicy, NpmpSpec, load_policy
-    from distill.npmp.training import DistillResult, default_sampler, train_npmp
+    from distill.npmp.model import MultiClipPrompt, NpmpPolicy, NpmpSpec, load_policy
+    from distill.npmp.training import DistillResult, train_npmp
 
 __all__ = [
     "DistillResult",
@@ -29,11 +29,11 @@ __getattr__, __dir__ = lazy_exports(
     {
         "DistillResult": "distill.npmp.training",
         "MultiClipPrompt": "distill.npmp.model",
-        "NpmpConfig": "distill.npmp.model",
+        "NpmpConfig": "distill.npmp.config",
         "NpmpPolicy": "distill.npmp.model",
         "NpmpSpec": "distill.npmp.model",
         "PolicyEvaluationConfig": "distill.npmp.config",
-        "default_sampler": "distill.npmp.training",
+        "default_sampler": "distill.npmp.config",
         "evaluate_multi_clip": "distill.npmp.evaluation",
         "fraction_of_experts": "distill.npmp.evaluation",
         "load_policy": "distill.npmp.model",

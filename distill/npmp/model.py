@@ -33,53 +33,15 @@ import numpy as np
 import torch
 from torch import nn
 
+from distill.npmp.config import NpmpConfig  # defined there (light), used and re-exported here
 from foundation.described_file import read_described, write_described
-from foundation.networks import ACTIVATIONS, mlp
+from foundation.networks import mlp
 from foundation.provenance import provenance
 from hierarchy.decoder import DecoderSpec, LatentDecoder, decoder_network
-from tasks.observables import DECODER, OBSERVABLE_SETS, flat_batch
+from tasks.observables import flat_batch
 
 POLICY_FORMAT = "mocap_hierarchy.multi_clip_policy"
 POLICY_SCHEMA_VERSION = 1
-
-
-@dataclass(frozen=True)
-class NpmpConfig:
-    """The multi-clip policy's architecture and objective (seed B.2, Table 2).
-
-    Attributes:
-        latent_size: Size of ``z``.
-        encoder_layers: Hidden sizes of the encoder.
-        decoder_layers: Hidden sizes of the decoder.
-        activation: Hidden activation (``elu``).
-        layer_norm: Layer norm after each hidden linear layer.
-        kl_weight: ``beta``.
-        alpha: Autoregressive parameter of the prior (0; Merel et al. use 0.95).
-        action_std: Fixed standard deviation of the decoder's Gaussian.
-        min_encoder_std: Lower bound of the encoder's standard deviation.
-        encoder_observables: Encoder inputs (state and reference).
-        decoder_observables: Decoder inputs (proprioception only).
-        latent_bound: Bound of ``z`` recorded in the decoder file for high-level policies.
-    """
-
-    latent_size: int = 60
-    encoder_layers: tuple[int, ...] = (1024, 1024)
-    decoder_layers: tuple[int, ...] = (1024, 1024, 1024)
-    activation: str = "elu"
-    layer_norm: bool = True
-    kl_weight: float = 0.1
-    alpha: float = 0.0
-    action_std: float = 0.1
-    min_encoder_std: float = 1e-5
-    encoder_observables: tuple[str, ...] = OBSERVABLE_SETS["encoder"]
-    decoder_observables: tuple[str, ...] = DECODER
-    latent_bound: float = 3.0
-
-    def __post_init__(self) -> None:
-        if not 0.0 <= self.alpha < 1.0:
-            raise ValueError(f"alpha must be in [0, 1), got {self.alpha}")
-        if self.activation not in ACTIVATIONS:
-            raise ValueError(f"activation must be one of {', '.join(ACTIVATIONS)}")
 
 
 @dataclass(frozen=True)

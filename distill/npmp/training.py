@@ -17,6 +17,7 @@ from pathlib import Path
 
 from distill.dataset.reader import RolloutDataset
 from distill.dataset.sampler import SamplerConfig, WindowDataset
+from distill.npmp.config import default_sampler  # defined there (light), used and re-exported here
 from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec
 from distill.trainer import TrainerConfig, TrainingOutcome, train_on_dataset, write_run_summary
 
@@ -37,11 +38,6 @@ class DistillResult:
     decoder: Path
     policy: Path
     outcome: TrainingOutcome
-
-
-def default_sampler() -> SamplerConfig:
-    """The seed's distillation sampling: windows of 30, RWR weighting (best in seed C.2.1), short clips upsampled."""
-    return SamplerConfig(window=30, weighting="rwr", normalize_observations=True)
 
 
 def train_npmp(

@@ -17,7 +17,7 @@ from foundation.config_cli import (
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``distill train`` (flags added when chosen: their configs live beside torch) and ``distill eval``."""
+    """Registers ``distill train`` (flags added when it is chosen) and ``distill eval``."""
     distill = subparsers.add_parser("distill", help="multi-clip policy: train (writes the decoder file), evaluate")
     distill_commands = add_subcommands(distill, dest="distill_command", required=True, metavar="COMMAND")
     distill_commands.add_lazy_parser(
@@ -35,10 +35,9 @@ def add_commands(subparsers: LazySubParsers) -> None:
 
 
 def _build_train(parser: argparse.ArgumentParser) -> None:
-    from distill.dataset.sampler import SamplerConfig
-    from distill.npmp.model import NpmpConfig
-    from distill.npmp.training import default_sampler
-    from distill.trainer import TrainerConfig
+    from distill.dataset.config import SamplerConfig
+    from distill.npmp.config import NpmpConfig, default_sampler
+    from distill.trainer_config import TrainerConfig
 
     parser.add_argument("--data", type=Path, required=True, help="rollout dataset folder")
     parser.add_argument("--out", type=Path, required=True, help="output folder (decoder.safetensors lands here)")

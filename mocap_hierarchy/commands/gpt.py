@@ -16,7 +16,7 @@ from foundation.config_cli import (
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``gpt train`` and ``gpt complete`` (flags added when chosen: their configs live beside torch)."""
+    """Registers ``gpt train`` and ``gpt complete`` (flags added when one is chosen)."""
     gpt = subparsers.add_parser("gpt", help="motion GPT: train on the rollout dataset, complete motions")
     commands = add_subcommands(gpt, dest="gpt_command", required=True, metavar="COMMAND")
     commands.add_lazy_parser(
@@ -28,10 +28,9 @@ def add_commands(subparsers: LazySubParsers) -> None:
 
 
 def _build_train(parser: argparse.ArgumentParser) -> None:
-    from distill.dataset.sampler import SamplerConfig
-    from distill.gpt.model import GptConfig
-    from distill.gpt.training import default_gpt_sampler, default_gpt_trainer
-    from distill.trainer import TrainerConfig
+    from distill.dataset.config import SamplerConfig
+    from distill.gpt.config import GptConfig, default_gpt_sampler, default_gpt_trainer
+    from distill.trainer_config import TrainerConfig
 
     parser.add_argument("--data", type=Path, required=True, help="rollout dataset folder")
     parser.add_argument("--out", type=Path, required=True, help="output folder (gpt.safetensors lands here)")
@@ -42,7 +41,7 @@ def _build_train(parser: argparse.ArgumentParser) -> None:
 
 
 def _build_complete(parser: argparse.ArgumentParser) -> None:
-    from distill.gpt.completion import CompletionConfig
+    from distill.gpt.config import CompletionConfig
 
     parser.add_argument("--gpt", type=Path, required=True, help="gpt.safetensors or the folder holding it")
     source = parser.add_mutually_exclusive_group(required=True)

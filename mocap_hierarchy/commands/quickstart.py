@@ -13,7 +13,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
 
 
 def _build_quickstart(parser: argparse.ArgumentParser) -> None:
-    from mocap_hierarchy.quickstart import QuickstartConfig
+    from mocap_hierarchy.quickstart.config import QuickstartConfig
 
     add_dataclass_arguments(parser, QuickstartConfig)
     parser.set_defaults(handler=_quickstart)

@@ -17,7 +17,7 @@ from foundation.config_cli import (
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``transfer train`` (flags added when chosen: its config lives beside torch) and ``transfer eval``."""
+    """Registers ``transfer train`` (flags added when it is chosen) and ``transfer eval``."""
     transfer = subparsers.add_parser("transfer", help="high-level PPO on a task, with or without a decoder")
     transfer_commands = add_subcommands(transfer, dest="transfer_command", required=True, metavar="COMMAND")
     transfer_commands.add_lazy_parser("train", _build_train, help="train a task policy (resumes an interrupted run)")
@@ -32,7 +32,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
 
 
 def _build_train(parser: argparse.ArgumentParser) -> None:
-    from hierarchy.transfer import TransferConfig
+    from hierarchy.transfer_config import TransferConfig
 
     parser.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
     parser.add_argument("--decoder", type=Path, default=None, help="decoder file; omit for the no-decoder baseline")

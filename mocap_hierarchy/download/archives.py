@@ -16,7 +16,6 @@ from typing import Any
 
 from foundation.atomic import write_json
 from mocap_hierarchy.download.catalogue import DownloadError, RemoteFile
-from tasks.clips.snippets import parse_snippet_id
 
 MANIFEST_NAME = "download_manifest.json"
 MANIFEST_FORMAT = "mocap_hierarchy.download_manifest"
@@ -133,6 +132,8 @@ def expert_path(member: str) -> tuple[str | None, str]:
     the first path component that is a ``CLIP-START-END`` id decides. Members outside any
     snippet folder give ``(None, member)``.
     """
+    from tasks.clips.snippets import parse_snippet_id  # here: the snippet module loads h5py (help stays light)
+
     parts = PurePosixPath(member).parts
     for index, part in enumerate(parts):
         if part.count("-") == 2:
@@ -144,6 +145,8 @@ def expert_path(member: str) -> tuple[str | None, str]:
 
 def matching_snippets(snippets: Iterable[str], wanted: set[str] | None) -> set[str]:
     """The snippets that ``wanted`` asks for (by id, or by clip id for all of a clip's snippets)."""
+    from tasks.clips.snippets import parse_snippet_id
+
     snippets = set(snippets)
     if wanted is None:
         return snippets

@@ -9,7 +9,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from tasks.clips.snippets import parse_snippet_id
 from tasks.clips.sources import cache_dir
 
 MODELS_REPO = "microsoft/mocapact-models"
@@ -165,6 +164,8 @@ def read_snippets_file(path: str | os.PathLike) -> list[str]:
         FileNotFoundError: No such file.
         ValueError: A malformed id (with its line).
     """
+    from tasks.clips.snippets import parse_snippet_id  # here: the snippet module loads h5py (help stays light)
+
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"snippets file {path} does not exist")

@@ -36,7 +36,6 @@ from mocap_hierarchy.download.catalogue import (
     unreachable,
 )
 from mocap_hierarchy.download.checks import mismatches, remove_cached
-from tasks.clips.snippets import parse_snippet_id
 
 
 @dataclass
@@ -292,6 +291,8 @@ def download_archives(
         DownloadError: The Hub cannot be reached, a file is corrupted (deleted), or an
             archive holds an unsafe member (nothing of it extracted).
     """
+    from tasks.clips.snippets import parse_snippet_id  # here: the snippet module loads h5py (help stays light)
+
     hub = hub or HubSettings()
     if name not in ARTIFACTS or name == "multiclip":
         raise KeyError(f"unknown archive artifact {name!r}; choose from {sorted(set(ARTIFACTS) - {'multiclip'})}")

@@ -39,20 +39,25 @@ reads PPO's training returns back),
 :mod:`~mocap_hierarchy.quickstart.pipeline` (:func:`run_quickstart`, which runs them in order).
 """
 
-from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, QuickstartConfig
-from mocap_hierarchy.quickstart.pipeline import run_quickstart
-from mocap_hierarchy.quickstart.records import (
-    RECORD_FORMAT,
-    STAGES_DIR,
-    RunLog,
-    StageRunner,
-    digest_of,
-    job_runs,
-    job_seconds,
-    settings_digest,
-)
-from mocap_hierarchy.quickstart.report import print_summary
-from mocap_hierarchy.quickstart.verdicts import FOLLOWS_REWARD, LEVEL, summary_verdicts
+from typing import TYPE_CHECKING
+
+from foundation.lazy import lazy_exports
+
+if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
+    from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, QuickstartConfig
+    from mocap_hierarchy.quickstart.pipeline import run_quickstart
+    from mocap_hierarchy.quickstart.records import (
+        RECORD_FORMAT,
+        STAGES_DIR,
+        RunLog,
+        StageRunner,
+        digest_of,
+        job_runs,
+        job_seconds,
+        settings_digest,
+    )
+    from mocap_hierarchy.quickstart.report import print_summary
+    from mocap_hierarchy.quickstart.verdicts import FOLLOWS_REWARD, LEVEL, summary_verdicts
 
 __all__ = [
     "EPISODE_LIMIT",
@@ -71,3 +76,24 @@ __all__ = [
     "settings_digest",
     "summary_verdicts",
 ]
+
+__getattr__, __dir__ = lazy_exports(
+    globals(),
+    {
+        "EPISODE_LIMIT": "mocap_hierarchy.quickstart.config",
+        "FOLLOWS_REWARD": "mocap_hierarchy.quickstart.verdicts",
+        "LEVEL": "mocap_hierarchy.quickstart.verdicts",
+        "RECORD_FORMAT": "mocap_hierarchy.quickstart.records",
+        "STAGES_DIR": "mocap_hierarchy.quickstart.records",
+        "QuickstartConfig": "mocap_hierarchy.quickstart.config",
+        "RunLog": "mocap_hierarchy.quickstart.records",
+        "StageRunner": "mocap_hierarchy.quickstart.records",
+        "digest_of": "mocap_hierarchy.quickstart.records",
+        "job_runs": "mocap_hierarchy.quickstart.records",
+        "job_seconds": "mocap_hierarchy.quickstart.records",
+        "print_summary": "mocap_hierarchy.quickstart.report",
+        "run_quickstart": "mocap_hierarchy.quickstart.pipeline",
+        "settings_digest": "mocap_hierarchy.quickstart.records",
+        "summary_verdicts": "mocap_hierarchy.quickstart.verdicts",
+    },
+)

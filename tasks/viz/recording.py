@@ -30,6 +30,7 @@ no viewer and no display.
 from __future__ import annotations
 
 import os
+import socket
 from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
@@ -41,6 +42,7 @@ import numpy as np
 import rerun as rr
 from scipy.spatial.transform import Rotation
 
+from foundation.atomic import remove_stale_temporaries
 from tasks.walker import CONTROL_TIMESTEP, WalkerModel
 
 WALKER_COLOUR = (200, 140, 90, 255)
@@ -133,8 +135,9 @@ class RerunRecorder(gym.Wrapper):
             )
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        # Written under a temporary name; close() renames it, so an interrupted run leaves no half file.
-        self._temporary = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        # Written under a temporary name (atomic_path's pattern); close() renames it, so an interrupted run
+        # leaves no half file, and the next recording of the same file removes what a killed one left.
+        self._temporary = self.path.with_name(f".{self.path.name}.{socket.gethostname()}-{os.getpid()}.tmp")
         self._stream = rr.RecordingStream(application_id, batcher_config=FILE_BATCHING)
         self._stream.save(str(self._temporary))
         self._shapes = WalkerShapes(task.walker)
@@ -167,6 +170,7 @@ class RerunRecorder(gym.Wrapper):
         self._stream.disconnect()
         if self._temporary.is_file():
             os.replace(self._temporary, self.path)
+            remove_stale_temporaries(self.path)
         super().close()
 
     def discard(self) -> None:

@@ -1,6 +1,8 @@
 """Job functions for the fan-out tests (a module, so worker processes can import them)."""
 
 import os
+import signal
+import time
 from pathlib import Path
 
 
@@ -21,3 +23,15 @@ def fail_once(marker, crash=False):
 
 def always_fails():
     raise ValueError("broken job")
+
+
+def slow_square(x, seconds):
+    time.sleep(seconds)
+    return x * x
+
+
+def crash(how):
+    """Dies without a result: ``segfault`` (SIGSEGV) or ``exit`` (``os._exit(7)``)."""
+    if how == "segfault":
+        os.kill(os.getpid(), signal.SIGSEGV)
+    os._exit(7)

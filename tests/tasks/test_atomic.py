@@ -24,3 +24,34 @@ def test_a_failed_write_keeps_the_old_file_and_leaves_no_temporary(tmp_path):
         raise RuntimeError("interrupted")
     assert target.read_text().strip().startswith("{") and "old" in target.read_text()
     assert [p.name for p in tmp_path.iterdir()] == ["value.json"]
+
+
+def test_a_killed_writers_temporary_goes_with_the_next_write(tmp_path):
+    import socket
+    import subprocess
+    import sys
+
+    # A writer killed (SIGKILL) inside the block leaves its temporary; a later write of the same file removes it,
+    # but never a temporary whose writer still runs.
+    script = (
+        "import os, signal, sys\nfrom foundation.atomic import atomic_path\n"
+        "with atomic_path(sys.argv[1]) as t:\n    t.write_text('half')\n    os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    subprocess.run([sys.executable, "-c", script, str(tmp_path / "value.json")], check=False)
+    left = [p.name for p in tmp_path.iterdir()]
+    assert len(left) == 1 and left[0].startswith(".value.json.") and left[0].endswith(".tmp")
+    with atomic_path(tmp_path / "value.json") as temporary:
+        alive = tmp_path / f".value.json.{socket.gethostname()}-{os.getpid()}.x.tmp"  # a writer that still runs
+        alive.write_text("another write in flight")
+        temporary.write_text("{}")
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([alive.name, "value.json"])
+
+
+def test_a_write_that_fails_names_the_file_meant(tmp_path):
+    import errno
+
+    with pytest.raises(OSError) as raised, atomic_path(tmp_path / "model.zip") as temporary:
+        temporary.write_text("x")
+        raise OSError(errno.ENOSPC, "No space left on device")
+    assert raised.value.errno == errno.ENOSPC and raised.value.filename == str(tmp_path / "model.zip")
+    assert list(tmp_path.iterdir()) == []

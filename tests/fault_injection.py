@@ -1,0 +1,191 @@
+"""Fault injection for long jobs: run a real command, kill it at seeded random moments, rerun it, check.
+
+A :class:`KillTrial` runs ``mocap-hierarchy ARGS`` once uninterrupted (the
+reference and the time a run takes), then in a fresh folder starts it again and
+again, each time killing its whole process group (workers included) after a
+delay drawn from a seeded generator, until a run finishes; every kill is
+logged. The returned :class:`KillReport` says how many kills hit a running job,
+which temporary files were left, which finished units were written again, and
+what the outputs look like, for the test to assert on and for
+``docs/results.md``'s table.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import random
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+IGNORED_OUTPUTS = ("events.out.tfevents", "progress.csv", "timings", ".log")
+"""Files whose bytes depend on wall time (TensorBoard, SB3's CSV log): not compared."""
+
+
+def command(args: Sequence[str]) -> list[str]:
+    """The command line of ``mocap-hierarchy ARGS`` in this interpreter."""
+    return [sys.executable, "-m", "mocap_hierarchy", *args]
+
+
+def run_to_end(args: Sequence[str], timeout: float = 600) -> tuple[subprocess.CompletedProcess, float]:
+    """Runs the command to its end; fails the test with its output if it does not exit 0."""
+    started = time.perf_counter()
+    result = subprocess.run(command(args), capture_output=True, text=True, timeout=timeout)
+    seconds = time.perf_counter() - started
+    if result.returncode != 0:
+        raise AssertionError(
+            f"{' '.join(args)} exited {result.returncode}:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
+        )
+    return result, seconds
+
+
+def start(args: Sequence[str], log: Path) -> subprocess.Popen:
+    """Starts the command in a session of its own (so a kill reaches its workers too)."""
+    with open(log, "ab") as handle:
+        return subprocess.Popen(command(args), stdout=handle, stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def kill_after(args: Sequence[str], delay: float, log: Path, sig: int = signal.SIGKILL) -> bool:
+    """Runs the command and sends ``sig`` to its process group after ``delay`` seconds.
+
+    Returns:
+        Whether the signal hit a running job (False: it had finished before).
+    """
+    process = start(args, log)
+    try:
+        process.wait(timeout=delay)
+        return False
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, sig)
+        process.wait()
+        if sig == signal.SIGKILL:  # workers are in the group too; wait until they are gone
+            _wait_for_group(process.pid)
+        return True
+
+
+def _wait_for_group(group: int, timeout: float = 30.0) -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(group, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.05)
+
+
+def temporaries(folder: Path) -> list[str]:
+    """Temporary files of atomic writes and recordings (``.NAME.HOST-PID...tmp``) under ``folder``."""
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob(".*.tmp"))
+
+
+def digests(folder: Path, ignored: Sequence[str] = IGNORED_OUTPUTS) -> dict[str, str]:
+    """SHA-256 of every regular file under ``folder`` (relative path -> digest), wall-time logs left out."""
+    result = {}
+    for path in sorted(folder.rglob("*")):
+        if path.is_file() and not any(part in path.name for part in ignored):
+            result[str(path.relative_to(folder))] = hashlib.sha256(path.read_bytes()).hexdigest()
+    return result
+
+
+def stamps(folder: Path, pattern: str) -> dict[str, int]:
+    """Modification times (ns) of the files matching ``pattern``: the finished units of a job."""
+    return {str(p.relative_to(folder)): p.stat().st_mtime_ns for p in folder.glob(pattern)}
+
+
+@dataclass
+class KillReport:
+    """What happened to one job under kills (see the module docstring).
+
+    Attributes:
+        job: The job's name.
+        seed: Seed of the kill moments.
+        delays: Seconds after each start at which a kill was sent.
+        kills: Kills that hit a running job.
+        runs: Starts, the finishing one included.
+        reference_seconds: Duration of the uninterrupted run.
+        temporaries_after_kills: Temporary files seen after some kill (expected: atomic writes cut short).
+        temporaries_at_end: Temporary files left when the job has finished (must be none).
+        redone: Finished units (``unit_pattern`` files) written again by a later run (must be none).
+        units: Finished units at the end.
+        outputs: Digests of the outputs at the end.
+        log: The combined output of every run.
+    """
+
+    job: str
+    seed: int
+    delays: list[float] = field(default_factory=list)
+    kills: int = 0
+    runs: int = 0
+    reference_seconds: float = 0.0
+    temporaries_after_kills: list[str] = field(default_factory=list)
+    temporaries_at_end: list[str] = field(default_factory=list)
+    redone: list[str] = field(default_factory=list)
+    units: int = 0
+    outputs: dict[str, str] = field(default_factory=dict)
+    log: str = ""
+
+    def row(self) -> str:
+        """A line of ``docs/results.md``'s table."""
+        return (
+            f"| {self.job} | {self.kills} | {self.runs - 1 - self.kills} | {len(self.outputs)} | "
+            f"{len(self.redone)} | {len(self.temporaries_at_end)} |"
+        )
+
+
+def kill_and_resume(
+    job: str,
+    args: Callable[[Path], list[str]],
+    folder: Path,
+    kills: int,
+    seed: int,
+    unit_pattern: str = "",
+    duration: float | None = None,
+    sig: int = signal.SIGKILL,
+) -> KillReport:
+    """Kills ``args(out)`` ``kills`` times at seeded random moments, then lets it finish.
+
+    Args:
+        job: A name for the report.
+        args: The command's arguments for an output folder.
+        folder: Where ``out/`` and the run log go.
+        kills: Kill moments to draw.
+        seed: Seed of the moments (uniform over 10-90 % of ``duration``).
+        unit_pattern: Glob (relative to ``out``) of the files that mark a finished unit of work.
+        duration: Seconds an uninterrupted run takes (the reference run's when None is given).
+        sig: The signal (SIGKILL: no handler runs).
+    """
+    out, log = folder / "out", folder / "runs.log"
+    folder.mkdir(parents=True, exist_ok=True)
+    report = KillReport(job, seed, reference_seconds=duration or 0.0)
+    rng = random.Random(seed)
+    for _ in range(kills):
+        delay = round(rng.uniform(0.1, 0.9) * report.reference_seconds, 2)
+        before = stamps(out, unit_pattern) if unit_pattern and out.exists() else {}
+        report.delays.append(delay)
+        report.runs += 1
+        report.kills += kill_after(args(out), delay, log, sig)
+        report.redone += _rewritten(out, unit_pattern, before)
+        if out.exists():
+            report.temporaries_after_kills += temporaries(out)
+    before = stamps(out, unit_pattern) if unit_pattern and out.exists() else {}
+    result, _ = run_to_end(args(out))
+    report.runs += 1
+    report.redone += _rewritten(out, unit_pattern, before)
+    report.temporaries_at_end = temporaries(out)
+    report.units = len(stamps(out, unit_pattern)) if unit_pattern else 0
+    report.outputs = digests(out)
+    report.log = log.read_text(errors="replace") if log.exists() else ""
+    report.log += result.stdout + result.stderr
+    return report
+
+
+def _rewritten(out: Path, pattern: str, before: dict[str, int]) -> list[str]:
+    if not pattern or not out.exists():
+        return []
+    after = stamps(out, pattern)
+    return [name for name, stamp in before.items() if after.get(name, stamp) != stamp]
