@@ -7,9 +7,12 @@ complete new one. Used for every file the library writes.
 from __future__ import annotations
 
 import contextlib
+import errno
 import glob
 import json
 import os
+import re
+import shutil
 import socket
 import tempfile
 from collections.abc import Iterator
@@ -55,15 +58,43 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         yield Path(temporary)
         os.chmod(temporary, 0o666 & ~_UMASK)
         os.replace(temporary, path)
-    except OSError as error:
+    except Exception as error:
         Path(temporary).unlink(missing_ok=True)
-        if error.errno is None or error.filename == str(path):
+        failure = _file_system_error(error, path)
+        if failure is None or (isinstance(error, OSError) and error.filename == str(path)):
             raise
-        raise OSError(error.errno, error.strerror, str(path)) from error  # name the file meant, not its temporary
+        raise failure from error  # name the file meant, not its temporary
     except BaseException:
         Path(temporary).unlink(missing_ok=True)
         raise
     remove_stale_temporaries(path)
+
+
+def _file_system_error(error: BaseException, path: Path) -> OSError | None:
+    """An ``OSError`` naming ``path`` when the file system made the write fail (full, read-only, ...).
+
+    Libraries report it in their own ways: an ``OSError`` with an ``errno``, an HDF5
+    message with ``errno = 28`` in it (h5py), or no number at all (torch's zip writer,
+    then a full disk is recognised by its free space).
+    """
+    link: BaseException | None = error
+    while link is not None:
+        if isinstance(link, OSError) and link.errno:
+            return OSError(link.errno, link.strerror, str(path))
+        found = re.search(r"errno = (\d+)", str(link))
+        if found:
+            number = int(found.group(1))
+            return OSError(number, os.strerror(number), str(path))
+        link = link.__cause__ or link.__context__
+    try:
+        full = shutil.disk_usage(path.parent).free < _NEARLY_FULL
+    except OSError:
+        return None
+    return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path)) if full else None
+
+
+_NEARLY_FULL = 1 << 16
+"""Free bytes below which a failed write is put down to a full disk."""
 
 
 def remove_stale_temporaries(path: str | os.PathLike) -> list[Path]:

@@ -21,10 +21,8 @@ from types import FrameType
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
-class TrainingStopped(KeyboardInterrupt):
-    """A job stopped cleanly on request, after saving what it had.
-
-    A ``KeyboardInterrupt`` so code that does not know about it still unwinds.
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C or ``SIGTERM`` outside a clean stop (see :func:`interrupt_on_sigterm`).
 
     Attributes:
         exit_status: ``128 + signal number``, the shell's convention.
@@ -33,6 +31,34 @@ class TrainingStopped(KeyboardInterrupt):
     def __init__(self, message: str, signal_number: int) -> None:
         super().__init__(message)
         self.exit_status = 128 + signal_number
+
+
+@contextlib.contextmanager
+def interrupt_on_sigterm() -> Iterator[None]:
+    """While active, ``SIGTERM`` raises :class:`Interrupted` like Ctrl-C, so ``finally`` blocks and cleanups run.
+
+    Python's default for ``SIGTERM`` ends the process on the spot. Outside the main
+    thread nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handle(number: int, frame: FrameType | None) -> None:
+        raise Interrupted("SIGTERM", number)
+
+    previous = signal.signal(signal.SIGTERM, handle)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+class TrainingStopped(Interrupted):
+    """A job stopped cleanly on request, after saving what it had.
+
+    A ``KeyboardInterrupt`` so code that does not know about it still unwinds.
+    """
 
 
 @dataclass

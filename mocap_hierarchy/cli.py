@@ -16,7 +16,7 @@ from pathlib import Path
 
 from foundation.config_cli import add_subcommands
 from foundation.cores import use_available_cores
-from foundation.interrupts import TrainingStopped
+from foundation.interrupts import TrainingStopped, interrupt_on_sigterm
 from mocap_hierarchy import __version__
 from mocap_hierarchy.commands import COMMAND_MODULES
 
@@ -84,13 +84,21 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         args = build_parser().parse_args(argv)
-        from tasks.viz.video import VideoUnavailableError  # after parsing: --help imports no simulator
+        import tasks  # noqa: F401  (checks MUJOCO_GL; after parsing, so --help imports no simulator)
     except GlBackendError as error:  # MUJOCO_GL names a library that is not installed
         print(f"mocap-hierarchy: error: {error}", file=sys.stderr)
         return 2
 
     threads = getattr(args, "torch_threads", None)
     use_available_cores(threads if isinstance(threads, int) and threads > 0 else None)
+    with interrupt_on_sigterm():  # SIGTERM unwinds like Ctrl-C: temporaries removed, workers stopped
+        return run_command(args)
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Runs the parsed command; turns the errors a user can act on into one line and an exit status."""
+    from tasks.viz.video import VideoUnavailableError
+
     try:
         load_task_modules(args.tasks_from)
         args.handler(args)
@@ -103,13 +111,13 @@ def main(argv: list[str] | None = None) -> int:
     except TrainingStopped as stopped:  # Ctrl-C or SIGTERM, checkpoint saved
         print(f"mocap-hierarchy {args.command}: {stopped}", file=sys.stderr)
         return stopped.exit_status
-    except KeyboardInterrupt:  # a second Ctrl-C, or a job between its checkpoints
+    except KeyboardInterrupt as interrupted:  # a second Ctrl-C, or a job without a clean stop
         print(
             f"mocap-hierarchy {args.command}: interrupted; finished files are kept, "
             "and running the same command again resumes from the last checkpoint",
             file=sys.stderr,
         )
-        return 130
+        return getattr(interrupted, "exit_status", 130)
     return 0
 
 

@@ -13,9 +13,9 @@ It speaks just the parts of the Hub's HTTP protocol that ``huggingface_hub`` (2.
 - any other path that is a registered plain file (``add_plain``): served with ``Range`` support too.
 
 Unknown repos, revisions and files get 404 with the ``X-Error-Code`` the Hub sends. Faults for
-tests: :meth:`FakeHub.cut` (close the connection after N bytes of the next GETs) and
-:meth:`FakeHub.corrupt` (serve bytes that differ from the announced sha256). Every request is
-recorded in :attr:`FakeHub.requests`.
+tests: ``bytes_per_second`` (a slow link, so a kill lands mid-transfer), :meth:`FakeHub.cut`
+(close the connection after N bytes of the next GETs) and :meth:`FakeHub.corrupt` (serve bytes
+that differ from the announced sha256). Every request is recorded in :attr:`FakeHub.requests`.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import hashlib
 import json
 import socket
 import threading
+import time
 from dataclasses import dataclass, field
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from urllib.parse import parse_qs, unquote, urlsplit
@@ -58,6 +59,7 @@ class FakeHub:
     requests: list[Request] = field(default_factory=list)
     cuts: dict[str, list[int]] = field(default_factory=dict)
     corrupted: set[str] = field(default_factory=set)
+    bytes_per_second: float = 0.0  # > 0: file bodies trickle out at this rate (for kill tests)
     lock: threading.Lock = field(default_factory=threading.Lock)
     server: ThreadingHTTPServer | None = None
 
@@ -246,6 +248,11 @@ class _Handler(BaseHTTPRequestHandler):
                 if url_path.endswith(suffix) and remaining:
                     cut = remaining.pop(0)
                     break
+        if cut is None and hub.bytes_per_second > 0:
+            for offset in range(0, len(body), 4096):
+                self.wfile.write(body[offset : offset + 4096])
+                time.sleep(4096 / hub.bytes_per_second)
+            return
         if cut is None:
             self.wfile.write(body)
             return

@@ -129,11 +129,13 @@ class KillReport:
     outputs: dict[str, str] = field(default_factory=dict)
     log: str = ""
 
-    def row(self) -> str:
-        """A line of ``docs/results.md``'s table."""
+    def row(self, identical: bool) -> str:
+        """A line of ``docs/results.md``'s table (``identical``: the outputs were compared byte for byte)."""
+        checked = f"{len(self.outputs)} ({'byte-identical' if identical else 'complete, valid'})"
+        moments = ", ".join(f"{d:g}" for d in self.delays)
         return (
-            f"| {self.job} | {self.kills} | {self.runs - 1 - self.kills} | {len(self.outputs)} | "
-            f"{len(self.redone)} | {len(self.temporaries_at_end)} |"
+            f"| {self.job} | {self.kills} of {len(self.delays)} (at {moments} s; seed {self.seed}) | {self.runs} | "
+            f"{checked} | {len(self.redone)} | {len(self.temporaries_at_end)} |"
         )
 
 
@@ -154,7 +156,7 @@ def kill_and_resume(
         args: The command's arguments for an output folder.
         folder: Where ``out/`` and the run log go.
         kills: Kill moments to draw.
-        seed: Seed of the moments (uniform over 10-90 % of ``duration``).
+        seed: Seed of the moments (uniform over 15-60 % of ``duration``: a resumed run has less left to do).
         unit_pattern: Glob (relative to ``out``) of the files that mark a finished unit of work.
         duration: Seconds an uninterrupted run takes (the reference run's when None is given).
         sig: The signal (SIGKILL: no handler runs).
@@ -164,7 +166,7 @@ def kill_and_resume(
     report = KillReport(job, seed, reference_seconds=duration or 0.0)
     rng = random.Random(seed)
     for _ in range(kills):
-        delay = round(rng.uniform(0.1, 0.9) * report.reference_seconds, 2)
+        delay = round(rng.uniform(0.15, 0.6) * report.reference_seconds, 2)
         before = stamps(out, unit_pattern) if unit_pattern and out.exists() else {}
         report.delays.append(delay)
         report.runs += 1

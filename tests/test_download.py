@@ -364,3 +364,38 @@ def test_only_the_download_module_imports_a_network_library() -> None:
                     names = [node.module or ""]
                 offenders += [f"{path.relative_to(ROOT)}: {n}" for n in names if n.startswith(NETWORK_MODULES)]
     assert offenders == []
+
+
+# Killed anywhere ---------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_download_killed_anywhere_resumes_to_the_same_files(tmp_path: Path, monkeypatch) -> None:
+    from tests.fault_injection import digests, kill_and_resume, run_to_end
+
+    rng = np.random.default_rng(0)
+    with FakeHub(bytes_per_second=400_000) as hub:  # about 1 s per archive: kills land mid-transfer
+        for index, snippets in enumerate((EXPERTS_1, EXPERTS_2, ("CMU_075_09-0-134",)), start=1):
+            members = {name: data for s in snippets for name, data in expert_files(s).items()}
+            members[f"experts/{snippets[0].split('-')[0]}/{snippets[0]}/eval_rsi/model/weights.bin"] = rng.bytes(
+                400_000
+            )
+            hub.add("model", MODELS_REPO, f"all/experts/experts_{index}.tar.gz", tar_gz(members))
+        for name, value in subprocess_env(tmp_path, hub.url).items():
+            monkeypatch.setenv(name, value)
+
+        def args(out: Path) -> list[str]:
+            return ["download", "experts", "--out", str(out), "--cache-dir", str(out.parent / "cache")]
+
+        _, seconds = run_to_end(args(tmp_path / "reference" / "out"))
+        report = kill_and_resume(
+            "download experts", args, tmp_path / "trial", kills=4, seed=8, duration=seconds,
+            unit_pattern="experts/*/*/clip_info.json",
+        )  # fmt: skip
+    assert report.kills >= 3 and report.temporaries_at_end == [] and report.redone == []
+    reference = digests(tmp_path / "reference" / "out")
+    assert report.outputs == reference  # the same files, byte for byte (manifest included)
+    assert report.units == 6 and not list((tmp_path / "trial" / "out").rglob(".extracting-*"))
+    from tests.distill.test_kill_resume import publish
+
+    publish(report, identical=True)

@@ -36,12 +36,12 @@ TINY_PPO = ["--n-envs", "2", "--steps-per-update", "64", "--minibatch-size", "32
 TINY_PPO += ["--device", "cpu"]
 
 
-def publish(report: KillReport) -> None:
-    """Appends the report's table row (and its kill moments) to ``$KILL_REPORT`` when it is set."""
+def publish(report: KillReport, identical: bool = False) -> None:
+    """Appends the report's table row to ``$KILL_REPORT`` when it is set (call it once every check passed)."""
     target = os.environ.get("KILL_REPORT")
     if target:
         with open(target, "a") as handle:
-            handle.write(json.dumps({"row": report.row(), "seed": report.seed, "delays": report.delays}) + "\n")
+            handle.write(report.row(identical) + "\n")
 
 
 def check_common(report: KillReport, kills: int) -> None:
@@ -49,7 +49,6 @@ def check_common(report: KillReport, kills: int) -> None:
     assert report.kills >= kills - 1, f"kills landed after the job finished: {report.delays}"
     assert report.temporaries_at_end == [], report.temporaries_at_end
     assert report.redone == [], f"finished work was done again: {report.redone}"
-    publish(report)
 
 
 @pytest.fixture(scope="module")
@@ -82,13 +81,14 @@ def test_distill_train_killed_twice_resumes_and_finishes(rollout_dir, tmp_path):
     assert set(report.outputs) == set(digests(tmp_path / "reference"))  # the same files, complete
     if report.kills:
         assert "resuming" in report.log  # from the checkpoint, not from step 0
+    publish(report)
 
 
 @pytest.mark.slow
 def test_gpt_train_killed_resumes(rollout_dir, tmp_path):
     def args(out: Path) -> list[str]:
         return [
-            "gpt", "train", "--data", str(rollout_dir), "--out", str(out), "--steps", "300", "--layers", "1",
+            "gpt", "train", "--data", str(rollout_dir), "--out", str(out), "--steps", "1000", "--layers", "1",
             "--heads", "2", "--embedding-size", "16", "--block-size", "8", "--window", "8", "--batch-size", "4",
             "--checkpoint-every", "20", "--log-every", "20", "--device", "cpu",
         ]  # fmt: skip
@@ -97,6 +97,7 @@ def test_gpt_train_killed_resumes(rollout_dir, tmp_path):
     report = kill_and_resume("gpt train", args, tmp_path / "trial", kills=3, seed=2, duration=seconds)
     check_common(report, 3)
     assert set(report.outputs) == set(digests(tmp_path / "reference"))
+    publish(report)
 
 
 @pytest.mark.slow
@@ -114,6 +115,7 @@ def test_rollout_killed_gives_the_same_files(trained_expert, clip_library, tmp_p
     check_common(report, 3)
     reference = digests(tmp_path / "reference")
     assert report.outputs == reference  # deterministic: byte for byte
+    publish(report, identical=True)
 
 
 @pytest.mark.slow
@@ -131,6 +133,26 @@ def test_expert_train_many_on_the_process_pool_killed(clip_library, tmp_path):
     )
     check_common(report, 4)
     assert report.units == 3
+    publish(report)
+
+
+@pytest.mark.slow
+def test_expert_train_many_on_a_local_ray_instance_killed(clip_library, tmp_path):
+    pytest.importorskip("ray")
+    snippets = tmp_path / "snippets.txt"
+    snippets.write_text("SYN_wave-0-196\nSYN_stand-0-181\n")
+
+    def args(out: Path) -> list[str]:
+        return ["expert", "train-many", "--snippets", str(snippets), "--out", str(out), "--ray", "local",
+                "--clips", str(clip_library), *TINY_EXPERT]  # fmt: skip
+
+    _, seconds = run_to_end(args(tmp_path / "reference"))
+    report = kill_and_resume(
+        "expert train-many (Ray)", args, tmp_path / "trial", 3, seed=9, unit_pattern="*/done.json", duration=seconds
+    )
+    check_common(report, 3)
+    assert report.units == 2
+    publish(report)
 
 
 @pytest.mark.slow
@@ -144,6 +166,7 @@ def test_expert_train_killed_resumes(clip_library, tmp_path):
     check_common(report, 3)
     done = json.loads((tmp_path / "trial" / "out" / "SYN_wave-0-196" / "done.json").read_text())
     assert done["steps"] >= 1536 and not (tmp_path / "trial" / "out" / "SYN_wave-0-196" / "checkpoint").exists()
+    publish(report)
 
 
 @pytest.mark.slow
@@ -156,6 +179,7 @@ def test_transfer_train_killed_resumes(decoder_file, tmp_path):
     report = kill_and_resume("transfer train", args, tmp_path / "trial", 3, seed=6, duration=seconds)
     check_common(report, 3)
     assert (tmp_path / "trial" / "out" / "policy.safetensors").is_file()
+    publish(report)
 
 
 @pytest.mark.slow
@@ -168,6 +192,7 @@ def test_record_killed_leaves_no_half_recording(tmp_path):
     report = kill_and_resume("record", args, tmp_path / "trial", 3, seed=7, unit_pattern="*.rrd", duration=seconds)
     check_common(report, 3)
     assert list(report.outputs) == ["run.rrd"]
+    publish(report)
 
 
 # Clean stops: SIGTERM and Ctrl-C save a checkpoint and say how to resume.
@@ -227,6 +252,21 @@ def test_sigterm_to_train_many_stops_its_workers_cleanly(clip_library, tmp_path)
     for name in ("SYN_wave-0-196", "SYN_stand-0-181"):
         state = json.loads((out / name / "checkpoint" / "state.json").read_text())
         assert state["steps"] > 0 and temporaries(out / name) == []
+
+
+def test_sigterm_to_a_job_without_checkpoints_unwinds_and_leaves_no_temporary(tmp_path):
+    out = tmp_path / "run.rrd"
+    args = ["record", "--task", "velocity_control", "--policy", "random", "--out", str(out), "--episodes", "1000"]
+    process = subprocess.Popen(command(args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 240
+    while not list(tmp_path.glob(".run.rrd.*.tmp")):  # recording has begun
+        assert time.monotonic() < deadline and process.poll() is None, "the recording never started"
+        time.sleep(0.1)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 128 + signal.SIGTERM, stderr[-2000:]
+    assert "interrupted; finished files are kept" in stderr and "Traceback" not in stderr
+    assert list(tmp_path.iterdir()) == []  # neither a half recording nor its temporary
 
 
 # Disk full and read-only folders: a clear error naming the path, nothing corrupted.
