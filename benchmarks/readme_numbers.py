@@ -12,7 +12,7 @@ with ``--update-readme`` every ``<!-- measured:KEY -->VALUE<!-- /measured -->`` 
 the README is rewritten from it. ``tests/test_readme.py`` checks that the README's spans
 and the JSON agree. Takes about 20 minutes on 2 cores.
 
-    python benchmarks/readme_numbers.py [--update-readme] [--skip-tests]
+    python benchmarks/readme_numbers.py [--update-readme] [--skip-tests] [--skip-quickstart]
 """
 
 from __future__ import annotations
@@ -85,19 +85,27 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--update-readme", action="store_true", help="rewrite the README's measured spans")
     parser.add_argument("--skip-tests", action="store_true", help="keep the earlier tests_minutes")
+    parser.add_argument("--skip-quickstart", action="store_true", help="keep the earlier quickstart numbers")
     args = parser.parse_args()
     before = machine()
+    earlier = json.loads(NUMBERS.read_text()) if NUMBERS.is_file() else {"numbers": {}}
     numbers: dict[str, float] = {}
+    remeasured = []
     cli = [sys.executable, "-m", "mocap_hierarchy"]
-    with tempfile.TemporaryDirectory() as folder:
-        out = Path(folder) / "quickstart"
-        numbers["quickstart_minutes"] = timed_minutes([*cli, "quickstart", "--out", str(out)], ROOT)
-        print(f"quickstart: {numbers['quickstart_minutes']:.2f} min")
-        numbers["quickstart_rerun_seconds"] = 60 * timed_minutes([*cli, "quickstart", "--out", str(out)], ROOT)
-        print(f"quickstart rerun: {numbers['quickstart_rerun_seconds']:.1f} s")
-    if args.skip_tests and NUMBERS.is_file():
-        numbers["tests_minutes"] = json.loads(NUMBERS.read_text())["numbers"]["tests_minutes"]
+    if args.skip_quickstart and "quickstart_minutes" in earlier["numbers"]:
+        numbers.update({k: v for k, v in earlier["numbers"].items() if k.startswith("quickstart")})
     else:
+        remeasured.append("quickstart")
+        with tempfile.TemporaryDirectory() as folder:
+            out = Path(folder) / "quickstart"
+            numbers["quickstart_minutes"] = timed_minutes([*cli, "quickstart", "--out", str(out)], ROOT)
+            print(f"quickstart: {numbers['quickstart_minutes']:.2f} min")
+            numbers["quickstart_rerun_seconds"] = 60 * timed_minutes([*cli, "quickstart", "--out", str(out)], ROOT)
+            print(f"quickstart rerun: {numbers['quickstart_rerun_seconds']:.1f} s")
+    if args.skip_tests and "tests_minutes" in earlier["numbers"]:
+        numbers["tests_minutes"] = earlier["numbers"]["tests_minutes"]
+    else:
+        remeasured.append("tests")
         numbers["tests_minutes"] = timed_minutes([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"], ROOT)
         print(f"tests: {numbers['tests_minutes']:.2f} min")
     record = {
@@ -105,6 +113,7 @@ def main() -> None:
         "machine": {**before, "load_average_after": machine()["load_average"]},
         "commit": commit(),
         "date": date.today().isoformat(),
+        "remeasured": remeasured,  # the others kept from the earlier record
     }
     NUMBERS.write_text(json.dumps(record, indent=2) + "\n")
     print(f"wrote {NUMBERS}")

@@ -14,7 +14,7 @@ import pytest
 from foundation.config_cli import LazySubParsers
 from mocap_hierarchy.cli import build_parser, main
 
-HEAVY = {"torch", "mujoco", "dm_control", "gymnasium"}
+HEAVY = {"torch", "mujoco", "dm_control", "gymnasium", "h5py", "stable_baselines3"}
 
 LIGHT_HELP = [
     "--help",

@@ -107,7 +107,7 @@ def test_rollout_killed_gives_the_same_files(trained_expert, clip_library, tmp_p
     shutil.copytree(trained_expert, experts / trained_expert.name)
 
     def args(out: Path) -> list[str]:
-        return ["rollout", "--experts", str(experts), "--out", str(out), "--n-start", "2", "--n-rsi", "4",
+        return ["rollout", "--experts", str(experts), "--out", str(out), "--n-start", "2", "--n-rsi", "16",
                 "--workers", "2", "--trust-pickle"]  # fmt: skip
 
     _, seconds = run_to_end(args(tmp_path / "reference"))
@@ -119,39 +119,23 @@ def test_rollout_killed_gives_the_same_files(trained_expert, clip_library, tmp_p
 
 
 @pytest.mark.slow
-def test_expert_train_many_on_the_process_pool_killed(clip_library, tmp_path):
+@pytest.mark.parametrize("where", ["pool", "ray"])
+def test_expert_train_many_killed(clip_library, tmp_path, where):
+    if where == "ray":
+        pytest.importorskip("ray")
     snippets = tmp_path / "snippets.txt"
     snippets.write_text("SYN_wave-0-196\nSYN_stand-0-181\nSYN_squat-0-155\n")
+    runner = ["--workers", "2"] if where == "pool" else ["--ray", "local"]
 
     def args(out: Path) -> list[str]:
-        return ["expert", "train-many", "--snippets", str(snippets), "--out", str(out), "--workers", "2",
+        return ["expert", "train-many", "--snippets", str(snippets), "--out", str(out), *runner,
                 "--clips", str(clip_library), *TINY_EXPERT]  # fmt: skip
 
     _, seconds = run_to_end(args(tmp_path / "reference"))
-    report = kill_and_resume(
-        "expert train-many (pool)", args, tmp_path / "trial", 4, seed=4, unit_pattern="*/done.json", duration=seconds
-    )
+    name = f"expert train-many ({'process pool' if where == 'pool' else 'local Ray'})"
+    report = kill_and_resume(name, args, tmp_path / "trial", 4, seed=4, unit_pattern="*/done.json", duration=seconds)
     check_common(report, 4)
     assert report.units == 3
-    publish(report)
-
-
-@pytest.mark.slow
-def test_expert_train_many_on_a_local_ray_instance_killed(clip_library, tmp_path):
-    pytest.importorskip("ray")
-    snippets = tmp_path / "snippets.txt"
-    snippets.write_text("SYN_wave-0-196\nSYN_stand-0-181\n")
-
-    def args(out: Path) -> list[str]:
-        return ["expert", "train-many", "--snippets", str(snippets), "--out", str(out), "--ray", "local",
-                "--clips", str(clip_library), *TINY_EXPERT]  # fmt: skip
-
-    _, seconds = run_to_end(args(tmp_path / "reference"))
-    report = kill_and_resume(
-        "expert train-many (Ray)", args, tmp_path / "trial", 3, seed=9, unit_pattern="*/done.json", duration=seconds
-    )
-    check_common(report, 3)
-    assert report.units == 2
     publish(report)
 
 
@@ -186,7 +170,7 @@ def test_transfer_train_killed_resumes(decoder_file, tmp_path):
 def test_record_killed_leaves_no_half_recording(tmp_path):
     def args(out: Path) -> list[str]:
         return ["record", "--task", "velocity_control", "--policy", "random", "--out", str(out / "run.rrd"),
-                "--episodes", "3", "--set", "max_steps=150"]  # fmt: skip
+                "--episodes", "8", "--set", "max_steps=300"]  # fmt: skip
 
     _, seconds = run_to_end(args(tmp_path / "reference"))
     report = kill_and_resume("record", args, tmp_path / "trial", 3, seed=7, unit_pattern="*.rrd", duration=seconds)
