@@ -38,7 +38,9 @@ SPAN = re.compile(r"<!-- measured:(\w+) -->(.*?)<!-- /measured -->")
 def timed_minutes(command: list[str], cwd: Path) -> float:
     """Runs a command to completion (it must succeed) and returns its wall time in minutes."""
     started = time.perf_counter()
-    subprocess.run(command, cwd=cwd, check=True, stdout=subprocess.DEVNULL)
+    result = subprocess.run(command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    if result.returncode != 0:  # a number from a failing run means nothing: say what failed instead
+        sys.exit(f"{' '.join(command)} exited {result.returncode}; its output ends:\n{result.stdout[-4000:]}")
     return (time.perf_counter() - started) / 60
 
 

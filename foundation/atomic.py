@@ -11,9 +11,9 @@ import errno
 import glob
 import json
 import os
+import platform
 import re
 import shutil
-import socket
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -29,7 +29,7 @@ def _read_umask() -> int:
 _UMASK = _read_umask()
 
 
-_HOST = socket.gethostname()
+_HOST = platform.node()
 
 
 @contextlib.contextmanager

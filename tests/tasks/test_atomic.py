@@ -27,7 +27,7 @@ def test_a_failed_write_keeps_the_old_file_and_leaves_no_temporary(tmp_path):
 
 
 def test_a_killed_writers_temporary_goes_with_the_next_write(tmp_path):
-    import socket
+    import platform
     import subprocess
     import sys
 
@@ -41,7 +41,7 @@ def test_a_killed_writers_temporary_goes_with_the_next_write(tmp_path):
     left = [p.name for p in tmp_path.iterdir()]
     assert len(left) == 1 and left[0].startswith(".value.json.") and left[0].endswith(".tmp")
     with atomic_path(tmp_path / "value.json") as temporary:
-        alive = tmp_path / f".value.json.{socket.gethostname()}-{os.getpid()}.x.tmp"  # a writer that still runs
+        alive = tmp_path / f".value.json.{platform.node()}-{os.getpid()}.x.tmp"  # a writer that still runs
         alive.write_text("another write in flight")
         temporary.write_text("{}")
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted([alive.name, "value.json"])
