@@ -20,6 +20,7 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -32,16 +33,33 @@ def command(args: Sequence[str]) -> list[str]:
     return [sys.executable, "-m", "mocap_hierarchy", *args]
 
 
-def run_to_end(args: Sequence[str], timeout: float = 600) -> tuple[subprocess.CompletedProcess, float]:
-    """Runs the command to its end; fails the test with its output if it does not exit 0."""
+@dataclass(frozen=True)
+class Timing:
+    """How long an uninterrupted run took, and when it first wrote into its folder (the end of its startup)."""
+
+    seconds: float
+    startup: float
+
+
+def run_to_end(args: Sequence[str], out: Path | None = None, timeout: float = 600) -> tuple[str, Timing]:
+    """Runs the command to its end (fails the test with its output if it does not exit 0).
+
+    Returns:
+        Its output, and its :class:`Timing` (``startup``: until the first file appeared under ``out``).
+    """
     started = time.perf_counter()
-    result = subprocess.run(command(args), capture_output=True, text=True, timeout=timeout)
+    first_write = None
+    with subprocess.Popen(command(args), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True) as process:
+        reader = ThreadPoolExecutor(1).submit(process.communicate, timeout=timeout)
+        while not reader.done():
+            if first_write is None and out is not None and out.exists() and any(out.rglob("*")):
+                first_write = time.perf_counter() - started
+            time.sleep(0.02)
+        output = reader.result()[0]
     seconds = time.perf_counter() - started
-    if result.returncode != 0:
-        raise AssertionError(
-            f"{' '.join(args)} exited {result.returncode}:\n{result.stdout[-3000:]}\n{result.stderr[-3000:]}"
-        )
-    return result, seconds
+    if process.returncode != 0:
+        raise AssertionError(f"{' '.join(args)} exited {process.returncode}:\n{output[-5000:]}")
+    return output, Timing(seconds, first_write if first_write is not None else 0.0)
 
 
 def start(args: Sequence[str], log: Path) -> subprocess.Popen:
@@ -145,8 +163,8 @@ def kill_and_resume(
     folder: Path,
     kills: int,
     seed: int,
+    reference: Timing,
     unit_pattern: str = "",
-    duration: float | None = None,
     sig: int = signal.SIGKILL,
 ) -> KillReport:
     """Kills ``args(out)`` ``kills`` times at seeded random moments, then lets it finish.
@@ -156,33 +174,40 @@ def kill_and_resume(
         args: The command's arguments for an output folder.
         folder: Where ``out/`` and the run log go.
         kills: Kill moments to draw.
-        seed: Seed of the moments (uniform over 15-60 % of ``duration``: a resumed run has less left to do).
+        seed: Seed of the moments: after the reference run's startup, uniform over 10-60 % of the work
+            still left (the reference's, less what the killed runs did, at least a fifth of it).
+        reference: Timing of an uninterrupted run (:func:`run_to_end`).
         unit_pattern: Glob (relative to ``out``) of the files that mark a finished unit of work.
-        duration: Seconds an uninterrupted run takes (the reference run's when None is given).
         sig: The signal (SIGKILL: no handler runs).
     """
     out, log = folder / "out", folder / "runs.log"
     folder.mkdir(parents=True, exist_ok=True)
-    report = KillReport(job, seed, reference_seconds=duration or 0.0)
+    report = KillReport(job, seed, reference_seconds=reference.seconds)
     rng = random.Random(seed)
+    startup = min(reference.startup, 0.5 * reference.seconds)  # a job that writes only at its end still gets kills
+    work = report.reference_seconds - startup
+    worked = 0.0  # work the killed runs did (an upper bound of what a resumed run skips)
     for _ in range(kills):
-        delay = round(rng.uniform(0.15, 0.6) * report.reference_seconds, 2)
+        left = max(work - worked, 0.2 * work)
+        delay = round(startup + rng.uniform(0.1, 0.6) * left, 2)
         before = stamps(out, unit_pattern) if unit_pattern and out.exists() else {}
         report.delays.append(delay)
         report.runs += 1
-        report.kills += kill_after(args(out), delay, log, sig)
+        if kill_after(args(out), delay, log, sig):
+            report.kills += 1
+            worked += delay - startup
         report.redone += _rewritten(out, unit_pattern, before)
         if out.exists():
             report.temporaries_after_kills += temporaries(out)
     before = stamps(out, unit_pattern) if unit_pattern and out.exists() else {}
-    result, _ = run_to_end(args(out))
+    output, _ = run_to_end(args(out))
     report.runs += 1
     report.redone += _rewritten(out, unit_pattern, before)
     report.temporaries_at_end = temporaries(out)
     report.units = len(stamps(out, unit_pattern)) if unit_pattern else 0
     report.outputs = digests(out)
     report.log = log.read_text(errors="replace") if log.exists() else ""
-    report.log += result.stdout + result.stderr
+    report.log += output
     return report
 
 

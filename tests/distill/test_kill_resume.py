@@ -46,7 +46,7 @@ def publish(report: KillReport, identical: bool = False) -> None:
 
 def check_common(report: KillReport, kills: int) -> None:
     """What every trial must show: kills that hit, nothing left half-written, nothing redone."""
-    assert report.kills >= kills - 1, f"kills landed after the job finished: {report.delays}"
+    assert report.kills >= max(1, kills - 1), f"kills landed after the job finished: {report.delays}"
     assert report.temporaries_at_end == [], report.temporaries_at_end
     assert report.redone == [], f"finished work was done again: {report.redone}"
 
@@ -72,8 +72,8 @@ def test_distill_train_killed_twice_resumes_and_finishes(rollout_dir, tmp_path):
     from hierarchy import load_decoder
 
     args = distill_args(rollout_dir)
-    _, seconds = run_to_end(args(tmp_path / "reference"))
-    report = kill_and_resume("distill train", args, tmp_path / "trial", kills=2, seed=1, duration=seconds)
+    _, reference = run_to_end(args(tmp_path / "reference"), tmp_path / "reference")
+    report = kill_and_resume("distill train", args, tmp_path / "trial", kills=2, seed=1, reference=reference)
     check_common(report, 2)
     out = tmp_path / "trial" / "out"
     history = json.loads((out / "history.json").read_text())
@@ -93,8 +93,8 @@ def test_gpt_train_killed_resumes(rollout_dir, tmp_path):
             "--checkpoint-every", "20", "--log-every", "20", "--device", "cpu",
         ]  # fmt: skip
 
-    _, seconds = run_to_end(args(tmp_path / "reference"))
-    report = kill_and_resume("gpt train", args, tmp_path / "trial", kills=3, seed=2, duration=seconds)
+    _, reference = run_to_end(args(tmp_path / "reference"), tmp_path / "reference")
+    report = kill_and_resume("gpt train", args, tmp_path / "trial", kills=3, seed=2, reference=reference)
     check_common(report, 3)
     assert set(report.outputs) == set(digests(tmp_path / "reference"))
     publish(report)
@@ -110,8 +110,8 @@ def test_rollout_killed_gives_the_same_files(trained_expert, clip_library, tmp_p
         return ["rollout", "--experts", str(experts), "--out", str(out), "--n-start", "2", "--n-rsi", "16",
                 "--workers", "2", "--trust-pickle"]  # fmt: skip
 
-    _, seconds = run_to_end(args(tmp_path / "reference"))
-    report = kill_and_resume("rollout", args, tmp_path / "trial", 3, seed=3, unit_pattern="*.hdf5", duration=seconds)
+    _, reference = run_to_end(args(tmp_path / "reference"), tmp_path / "reference")
+    report = kill_and_resume("rollout", args, tmp_path / "trial", 3, seed=3, unit_pattern="*.hdf5", reference=reference)
     check_common(report, 3)
     reference = digests(tmp_path / "reference")
     assert report.outputs == reference  # deterministic: byte for byte
@@ -131,9 +131,9 @@ def test_expert_train_many_killed(clip_library, tmp_path, where):
         return ["expert", "train-many", "--snippets", str(snippets), "--out", str(out), *runner,
                 "--clips", str(clip_library), *TINY_EXPERT]  # fmt: skip
 
-    _, seconds = run_to_end(args(tmp_path / "reference"))
+    _, reference = run_to_end(args(tmp_path / "reference"), tmp_path / "reference")
     name = f"expert train-many ({'process pool' if where == 'pool' else 'local Ray'})"
-    report = kill_and_resume(name, args, tmp_path / "trial", 4, seed=4, unit_pattern="*/done.json", duration=seconds)
+    report = kill_and_resume(name, args, tmp_path / "trial", 4, seed=4, unit_pattern="*/done.json", reference=reference)
     check_common(report, 4)
     assert report.units == 3
     publish(report)
@@ -145,8 +145,8 @@ def test_expert_train_killed_resumes(clip_library, tmp_path):
         return ["expert", "train", "--snippet", "SYN_wave-0-196", "--out", str(out), "--clips", str(clip_library),
                 "--n-envs", "2", *TINY_EXPERT]  # fmt: skip
 
-    _, seconds = run_to_end(args(tmp_path / "reference"))
-    report = kill_and_resume("expert train", args, tmp_path / "trial", 3, seed=5, duration=seconds)
+    _, reference = run_to_end(args(tmp_path / "reference"), tmp_path / "reference")
+    report = kill_and_resume("expert train", args, tmp_path / "trial", 3, seed=5, reference=reference)
     check_common(report, 3)
     done = json.loads((tmp_path / "trial" / "out" / "SYN_wave-0-196" / "done.json").read_text())
     assert done["steps"] >= 1536 and not (tmp_path / "trial" / "out" / "SYN_wave-0-196" / "checkpoint").exists()
@@ -159,8 +159,8 @@ def test_transfer_train_killed_resumes(decoder_file, tmp_path):
         return ["transfer", "train", "--task", "velocity_control", "--decoder", str(decoder_file), "--out", str(out),
                 "--steps", "1024", "--checkpoint-every", "128", *TINY_PPO, "--set", "max_steps=20"]  # fmt: skip
 
-    _, seconds = run_to_end(args(tmp_path / "reference"))
-    report = kill_and_resume("transfer train", args, tmp_path / "trial", 3, seed=6, duration=seconds)
+    _, reference = run_to_end(args(tmp_path / "reference"), tmp_path / "reference")
+    report = kill_and_resume("transfer train", args, tmp_path / "trial", 3, seed=6, reference=reference)
     check_common(report, 3)
     assert (tmp_path / "trial" / "out" / "policy.safetensors").is_file()
     publish(report)
@@ -170,10 +170,10 @@ def test_transfer_train_killed_resumes(decoder_file, tmp_path):
 def test_record_killed_leaves_no_half_recording(tmp_path):
     def args(out: Path) -> list[str]:
         return ["record", "--task", "velocity_control", "--policy", "random", "--out", str(out / "run.rrd"),
-                "--episodes", "8", "--set", "max_steps=300"]  # fmt: skip
+                "--episodes", "40", "--set", "max_steps=300"]  # fmt: skip
 
-    _, seconds = run_to_end(args(tmp_path / "reference"))
-    report = kill_and_resume("record", args, tmp_path / "trial", 3, seed=7, unit_pattern="*.rrd", duration=seconds)
+    _, reference = run_to_end(args(tmp_path / "reference"), tmp_path / "reference")
+    report = kill_and_resume("record", args, tmp_path / "trial", 3, seed=7, unit_pattern="*.rrd", reference=reference)
     check_common(report, 3)
     assert list(report.outputs) == ["run.rrd"]
     publish(report)
