@@ -48,9 +48,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     path = Path(path)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(
-            prefix=f".{path.name}.{_HOST}-{os.getpid()}.", suffix=".tmp", dir=path.parent
-        )
+        handle, temporary = tempfile.mkstemp(prefix=_temporary_prefix(path), suffix=".tmp", dir=path.parent)
     except OSError as error:
         raise OSError(error.errno, error.strerror, str(path)) from error
     os.close(handle)
@@ -95,6 +93,20 @@ def _file_system_error(error: BaseException, path: Path) -> OSError | None:
 
 _NEARLY_FULL = 1 << 16
 """Free bytes below which a failed write is put down to a full disk."""
+
+
+def _temporary_prefix(path: Path) -> str:
+    """``.NAME.HOST-PID.``: whose temporary it is, so a later write can tell a dead writer's apart."""
+    return f".{path.name}.{_HOST}-{os.getpid()}."
+
+
+def owned_temporary(path: str | os.PathLike) -> Path:
+    """A temporary name for ``path`` in :func:`atomic_path`'s pattern, for writers that open files themselves.
+
+    Rename it to ``path`` when complete, then call :func:`remove_stale_temporaries`.
+    """
+    path = Path(path)
+    return path.with_name(f"{_temporary_prefix(path)}tmp")
 
 
 def remove_stale_temporaries(path: str | os.PathLike) -> list[Path]:

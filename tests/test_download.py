@@ -371,7 +371,7 @@ def test_only_the_download_module_imports_a_network_library() -> None:
 
 @pytest.mark.slow
 def test_download_killed_anywhere_resumes_to_the_same_files(tmp_path: Path, monkeypatch) -> None:
-    from tests.fault_injection import digests, kill_and_resume, run_to_end
+    from tests.fault_injection import digests, kill_and_resume, publish, run_to_end
 
     rng = np.random.default_rng(0)
     with FakeHub(bytes_per_second=150_000) as hub:  # about 3 s per archive: kills land mid-transfer
@@ -396,6 +396,4 @@ def test_download_killed_anywhere_resumes_to_the_same_files(tmp_path: Path, monk
     reference = digests(tmp_path / "reference" / "out")
     assert report.outputs == reference  # the same files, byte for byte (manifest included)
     assert report.units == 6 and not list((tmp_path / "trial" / "out").rglob(".extracting-*"))
-    from tests.distill.test_kill_resume import publish
-
     publish(report, identical=True)

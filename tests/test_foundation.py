@@ -149,3 +149,27 @@ def test_thread_variables_the_user_set_are_kept(monkeypatch):
         assert os.environ["OMP_NUM_THREADS"] == "3"  # the user's setting stays for what starts later
     finally:
         torch.set_num_threads(before)
+
+
+def test_a_first_stop_signal_waits_for_the_loop_and_a_second_stops_at_once():
+    import os
+    import signal
+    import time
+
+    from foundation.interrupts import TrainingStopped, stop_requests
+
+    before = signal.getsignal(signal.SIGTERM)
+    with stop_requests() as stop:
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.05)  # the handler runs at the next bytecode boundary
+        assert stop.requested and stop.signal == signal.SIGTERM  # noted, nothing raised yet
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(5)
+    assert signal.getsignal(signal.SIGTERM) is before  # handlers restored
+    stopped = stop.stop("distill: stopped at step 3 of 9", "run the same command again")
+    assert isinstance(stopped, TrainingStopped) and stopped.exit_status == 143
+    assert (
+        str(stopped)
+        == "distill: stopped at step 3 of 9 on SIGTERM; checkpoint saved; to resume, run the same command again"
+    )

@@ -30,7 +30,6 @@ no viewer and no display.
 from __future__ import annotations
 
 import os
-import platform
 from collections.abc import Callable
 from datetime import timedelta
 from pathlib import Path
@@ -42,7 +41,7 @@ import numpy as np
 import rerun as rr
 from scipy.spatial.transform import Rotation
 
-from foundation.atomic import remove_stale_temporaries
+from foundation.atomic import owned_temporary, remove_stale_temporaries
 from tasks.walker import CONTROL_TIMESTEP, WalkerModel
 
 WALKER_COLOUR = (200, 140, 90, 255)
@@ -137,7 +136,7 @@ class RerunRecorder(gym.Wrapper):
         self.path.parent.mkdir(parents=True, exist_ok=True)
         # Written under a temporary name (atomic_path's pattern); close() renames it, so an interrupted run
         # leaves no half file, and the next recording of the same file removes what a killed one left.
-        self._temporary = self.path.with_name(f".{self.path.name}.{platform.node()}-{os.getpid()}.tmp")
+        self._temporary = owned_temporary(self.path)
         self._stream = rr.RecordingStream(application_id, batcher_config=FILE_BATCHING)
         self._stream.save(str(self._temporary))
         self._shapes = WalkerShapes(task.walker)

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.fault_injection import KillReport, command, digests, kill_and_resume, run_to_end, temporaries
+from tests.fault_injection import KillReport, command, digests, kill_and_resume, publish, run_to_end, temporaries
 
 SMALL_MODEL = ["--latent-size", "4", "--encoder-layers", "16", "16", "--decoder-layers", "16", "16", "16"]
 SMALL_WINDOWS = ["--window", "5", "--batch-size", "8", "--device", "cpu"]
@@ -34,14 +34,6 @@ TINY_EXPERT = [
 ]  # fmt: skip
 TINY_PPO = ["--n-envs", "2", "--steps-per-update", "64", "--minibatch-size", "32", "--hidden-layers", "16"]
 TINY_PPO += ["--device", "cpu"]
-
-
-def publish(report: KillReport, identical: bool = False) -> None:
-    """Appends the report's table row to ``$KILL_REPORT`` when it is set (call it once every check passed)."""
-    target = os.environ.get("KILL_REPORT")
-    if target:
-        with open(target, "a") as handle:
-            handle.write(report.row(identical) + "\n")
 
 
 def check_common(report: KillReport, kills: int) -> None:
