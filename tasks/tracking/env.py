@@ -405,6 +405,21 @@ class ClipTrackingEnv(gym.Env):
         return self._data
 
     @property
+    def references(self) -> list[SnippetReference]:
+        """Every tracked snippet's reference, in ``config.snippets`` order."""
+        return list(self._references)
+
+    @property
+    def start_counts(self) -> list[int]:
+        """Number of possible start frames per snippet (1 with ``init="start"``)."""
+        return [count for _, count in self._starts]
+
+    @property
+    def start_probabilities(self) -> np.ndarray:
+        """Probability of each snippet being drawn at a reset (weighted by its starts)."""
+        return self._start_weights.copy()
+
+    @property
     def reference(self) -> SnippetReference:
         """The snippet tracked in the current episode."""
         return self._reference
