@@ -104,6 +104,84 @@ class ExpertConfig:
 
 
 @dataclass(frozen=True)
+class BatchedExpertConfig:
+    """How to train many snippet experts at once on the batched engine (MuJoCo Warp, rsl_rl's PPO).
+
+    One policy per snippet, each on its own group of worlds of one batched env.
+    The seed's settings where they transfer (discount, GAE, clipping, networks,
+    fixed action noise, termination); the batch-size dependent ones are the
+    GPU-PPO field's (rsl_rl, Isaac Lab, mjlab): thousands of worlds, short
+    rollouts, few large minibatches, a KL-adaptive step size.
+
+    Attributes:
+        total_steps: Environment steps per snippet.
+        worlds_per_snippet: Worlds (parallel episodes) each snippet's policy collects from.
+        steps_per_env: Steps per world between updates (the rollout length).
+        epochs: PPO epochs per update.
+        minibatches: Minibatches per epoch.
+        learning_rate: Adam step size (the start value when ``schedule`` is ``adaptive``).
+        schedule: ``adaptive`` (rsl_rl: scale the step size to keep the KL near ``desired_kl``) or ``fixed``.
+        desired_kl: Target KL divergence per update of the adaptive schedule.
+        gamma: Discount factor (seed).
+        gae_lambda: GAE parameter (seed).
+        clip_range: PPO clipping parameter (seed).
+        max_grad_norm: Gradient norm clipping value (seed).
+        hidden_layers: Hidden sizes of the policy and value networks (tanh; seed).
+        action_std: Fixed standard deviation of the Gaussian policy (seed: 0.1).
+        residual_actions: Actions are offsets from the reference's next pose.
+        termination_threshold: Tracking error that ends an episode (seed: 0.3).
+        train_min_steps: Random training starts exclude the last ``train_min_steps + 1`` frames.
+        eval_every: Record the training episodes' scores and keep the best policy every this many steps.
+        final_eval_episodes: Episodes of the seed's evaluation on the CPU env for each finished expert (0: none).
+        checkpoint_every: Save resumable checkpoints every this many steps (per snippet).
+        device: ``auto``, ``cpu`` (Warp's CPU device: for tests) or ``cuda[:N]``.
+        seed: Random seed.
+    """
+
+    total_steps: int = 20_000_000
+    worlds_per_snippet: int = 1024
+    steps_per_env: int = 32
+    epochs: int = 5
+    minibatches: int = 4
+    learning_rate: float = 3e-4
+    schedule: str = "adaptive"
+    desired_kl: float = 0.01
+    gamma: float = 0.95
+    gae_lambda: float = 0.95
+    clip_range: float = 0.25
+    max_grad_norm: float = 1.0
+    hidden_layers: tuple[int, ...] = (1024, 1024, 1024)
+    action_std: float = 0.1
+    residual_actions: bool = False
+    termination_threshold: float = 0.3
+    train_min_steps: int = 9
+    eval_every: int = 1_000_000
+    final_eval_episodes: int = 100
+    checkpoint_every: int = 2_000_000
+    device: str = "auto"
+    seed: int = 0
+
+    @property
+    def steps_per_update(self) -> int:
+        """Environment steps each snippet's policy collects between updates."""
+        return self.worlds_per_snippet * self.steps_per_env
+
+    def validate(self) -> None:
+        """Raises ValueError with the offending field if the settings cannot work."""
+        if min(self.total_steps, self.worlds_per_snippet, self.steps_per_env, self.epochs, self.minibatches) < 1:
+            raise ValueError("total_steps, worlds_per_snippet, steps_per_env, epochs and minibatches must be positive")
+        if self.steps_per_update % self.minibatches:
+            raise ValueError(
+                f"worlds_per_snippet x steps_per_env ({self.steps_per_update}) must be a multiple of minibatches "
+                f"({self.minibatches})"
+            )
+        if self.schedule not in ("adaptive", "fixed"):
+            raise ValueError(f"schedule must be 'adaptive' or 'fixed', got {self.schedule!r}")
+        if self.learning_rate <= 0 or self.action_std <= 0:
+            raise ValueError("learning_rate and action_std must be positive")
+
+
+@dataclass(frozen=True)
 class EvaluationConfig:
     """How to evaluate an expert (defaults: the seed's protocol, B.1.2).
 

@@ -8,7 +8,7 @@ import json
 import sys
 from pathlib import Path
 
-from distill.experts.config import EVALUATIONS, EvaluationConfig, ExpertConfig
+from distill.experts.config import EVALUATIONS, BatchedExpertConfig, EvaluationConfig, ExpertConfig
 from foundation.config_cli import LazySubParsers, add_dataclass_arguments, add_subcommands, dataclass_from_args
 
 
@@ -33,7 +33,15 @@ def add_commands(subparsers: LazySubParsers) -> None:
     many.add_argument("--workers", type=int, default=0, help="local worker processes (0: one per core)")
     many.add_argument("--ray", default=None, metavar="ADDRESS", help="run on a Ray cluster ('local' starts one)")
     many.add_argument("--max-attempts", type=int, default=3, help="attempts per job before it is reported failed")
+    many.add_argument(
+        "--engine",
+        choices=("process", "warp"),
+        default="process",
+        help="process: one CPU job per expert (SB3 PPO); warp: all experts in one batched GPU env (rsl_rl PPO, "
+        "needs the gpu extra; BatchedExpertConfig flags, and its defaults for the shared flags)",
+    )
     add_dataclass_arguments(many, ExpertConfig, exclude=("n_envs", "subprocess_envs", "torch_threads"))
+    add_dataclass_arguments(many, BatchedExpertConfig, exclude=_SHARED_WITH_CPU)
     many.set_defaults(handler=_train_many)
 
     evaluate = commands.add_parser("eval", help="evaluate experts: normalised reward and length")
@@ -54,6 +62,14 @@ def add_commands(subparsers: LazySubParsers) -> None:
     convert.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to convert")
     convert.add_argument("--force", action="store_true", help="convert again where our file already exists")
     convert.set_defaults(handler=_convert)
+
+
+_SHARED_WITH_CPU = tuple(
+    f.name
+    for f in dataclasses.fields(BatchedExpertConfig)
+    if f.name in {g.name for g in dataclasses.fields(ExpertConfig)}
+)
+"""Flags ``--engine warp`` reads from the CPU trainer's flag group (same names, same meaning)."""
 
 
 def _expert_config(args: argparse.Namespace, **fixed) -> ExpertConfig:
@@ -82,11 +98,44 @@ def _train_many(args: argparse.Namespace) -> None:
     if not args.snippets.is_file():
         raise FileNotFoundError(f"snippet list {args.snippets} does not exist (one snippet id per line)")
     snippets = [line.strip() for line in args.snippets.read_text().splitlines() if line.strip()]
+    if args.engine == "warp":
+        _train_many_batched(args, snippets)
+        return
+    batched_only = [f.name for f in dataclasses.fields(BatchedExpertConfig) if f.name not in _SHARED_WITH_CPU]
+    given = [f"--{name.replace('_', '-')}" for name in batched_only if getattr(args, name, None) is not None]
+    if given:
+        raise ValueError(f"{', '.join(given)} only apply to --engine warp")
     jobs = expert_jobs(snippets, args.out, _expert_config(args), args.clips)
     reports = run_jobs(jobs, workers=args.workers, max_attempts=args.max_attempts, ray_address=args.ray)
     print(summarise(reports))
     if any(r.status == "failed" for r in reports):
         sys.exit(1)
+
+
+def _train_many_batched(args: argparse.Namespace, snippets: list[str]) -> None:
+    """``train-many --engine warp``: every expert in one batched env (see :mod:`distill.experts.batched_training`)."""
+    from distill.experts.batched_training import train_experts_batched
+
+    cpu_only = [f.name for f in dataclasses.fields(ExpertConfig) if f.name not in _SHARED_WITH_CPU]
+    given = [f"--{name.replace('_', '-')}" for name in cpu_only if getattr(args, name, None) is not None]
+    if args.ray is not None or args.workers:
+        given.append("--ray/--workers")
+    if given:
+        raise ValueError(f"{', '.join(given)} do not apply to --engine warp (see BatchedExpertConfig in --help)")
+    config = dataclass_from_args(BatchedExpertConfig, args)
+    if args.steps is not None:
+        config = dataclasses.replace(config, total_steps=args.steps)
+    finished = train_experts_batched(snippets, args.out, config, clips=args.clips)
+    print(f"{'snippet':<28}{'best norm. reward':>18}{'best norm. length':>18}{'CPU eval length':>16}")
+    for snippet, summary in finished.items():
+        best = summary.get("best") or {}
+        cpu = summary.get("cpu_evaluation", {}).get("normalized_length", float("nan"))
+        print(
+            f"{snippet:<28}{best.get('normalized_reward', float('nan')):>18.3f}"
+            f"{best.get('normalized_length', float('nan')):>18.3f}{cpu:>16.3f}"
+        )
+    if not finished:
+        print(f"every expert in {args.snippets} is already done under {args.out}")
 
 
 def _evaluate(args: argparse.Namespace) -> None:

@@ -1,0 +1,72 @@
+"""stable-baselines3 files (``best_model.zip``, ``vecnormalize.pkl``) for an expert trained elsewhere.
+
+Experts trained on the batched engine live in the library's own format
+(``expert.safetensors``); the seed's A.1 directory also promises the two files
+stable-baselines3 loads with ``PPO.load`` and ``VecNormalize.load``. This
+module writes them from an :class:`~distill.experts.policy.ExpertPolicy`, so
+every expert directory looks the same whichever engine trained it.
+"""
+
+from __future__ import annotations
+
+import torch
+
+from distill.experts.files import ExpertDir
+from distill.experts.policy import ExpertPolicy
+from foundation.sb3 import PpoSettings, build_ppo, save_sb3
+from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
+
+_SB3_NAMES = {
+    "policy_net": "mlp_extractor.policy_net",
+    "value_net": "mlp_extractor.value_net",
+    "action": "action_net",
+    "value": "value_net",
+}
+"""Our module names -> stable-baselines3's ``MultiInputPolicy`` names."""
+
+
+def write_sb3_files(policy: ExpertPolicy, expert: ExpertDir, tracking: TrackingConfig) -> None:
+    """Writes ``best_model.zip`` and ``vecnormalize.pkl`` holding ``policy`` (atomically).
+
+    Args:
+        policy: The expert.
+        expert: Its directory.
+        tracking: The task it tracks (gives stable-baselines3 its spaces).
+    """
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    spec = policy.spec
+    venv = VecNormalize(
+        DummyVecEnv([lambda: ClipTrackingEnv(tracking)]),
+        norm_obs=True,
+        norm_reward=False,
+        clip_obs=spec.obs_clip,
+        epsilon=spec.obs_epsilon,
+        gamma=spec.gamma,
+    )
+    for key in policy.keys:
+        venv.obs_rms[key].mean = policy._mean[key].copy()
+        venv.obs_rms[key].var = policy._var[key].copy()
+    settings = PpoSettings(
+        learning_rate=3e-4,
+        steps_per_env=64,
+        minibatch_size=64,
+        epochs=1,
+        gamma=spec.gamma,
+        gae_lambda=spec.gae_lambda,
+        clip_range=0.2,
+        max_grad_norm=1.0,
+        hidden_layers=spec.hidden_layers,
+        initial_std=spec.action_std,
+        device="cpu",
+    )
+    model = build_ppo(venv, settings)
+    weights = model.policy.state_dict()
+    for name, value in policy.state_dict().items():
+        prefix, rest = name.split(".", 1)
+        weights[f"{_SB3_NAMES[prefix]}.{rest}"] = value.detach().clone()
+    model.policy.load_state_dict(weights)
+    with torch.no_grad():
+        model.policy.log_std.fill_(float(torch.log(torch.tensor(spec.action_std))))
+    save_sb3(model, venv, expert.best_model, expert.vecnormalize)
+    venv.close()
