@@ -20,6 +20,10 @@ class RolloutConfig:
         n_envs: Environments stepped in lockstep.
         seed: Seed of starts and action noise.
         trust_pickle: Convert experts without our sidecar from their pickles.
+        engine: ``process`` (CPU envs in lockstep) or ``warp`` (one batched MuJoCo Warp env per
+            snippet and start mode; needs the gpu extra). Same file format either way.
+        device: Device of the ``warp`` engine (``auto``, ``cpu``, ``cuda``).
+        worlds: Worlds of the ``warp`` engine (episodes run at once, at most the episodes asked for).
     """
 
     n_start: int = 10
@@ -28,6 +32,9 @@ class RolloutConfig:
     n_envs: int = 8
     seed: int = 0
     trust_pickle: bool = False
+    engine: str = "process"
+    device: str = "auto"
+    worlds: int = 1024
 
 
 @dataclass(frozen=True)

@@ -337,6 +337,8 @@ def rollout_clip(
         clips: Clip file.
         progress: Show a progress bar over snippets.
     """
+    if config.engine not in ("process", "warp"):
+        raise ValueError(f"engine must be 'process' or 'warp', got {config.engine!r}")
     path = rollout_path(out, clip_id)
     if is_complete(path, list(experts), config.n_start, config.n_rsi):
         return path
@@ -347,9 +349,16 @@ def rollout_clip(
     ):
         policy = source if hasattr(source, "act") else load_expert(str(source), config.trust_pickle)
         seed = config.seed * 1_000_003 + number * 2
-        common = {"clips": clips, "n_envs": config.n_envs, "walker": walker, "min_steps": config.min_steps}
-        start = rollout_snippet(policy, snippet, config.n_start, "start", seed=seed, **common)  # type: ignore[arg-type]
-        random = rollout_snippet(policy, snippet, config.n_rsi, "random", seed=seed + 1, **common)  # type: ignore[arg-type]
+        if config.engine == "warp":
+            from distill.dataset.batched_rollout import rollout_snippet_batched
+
+            batched = {"clips": clips, "min_steps": config.min_steps, "device": config.device, "worlds": config.worlds}
+            start = rollout_snippet_batched(policy, snippet, config.n_start, "start", seed=seed, **batched)  # type: ignore[arg-type]
+            random = rollout_snippet_batched(policy, snippet, config.n_rsi, "random", seed=seed + 1, **batched)  # type: ignore[arg-type]
+        else:
+            common = {"clips": clips, "n_envs": config.n_envs, "walker": walker, "min_steps": config.min_steps}
+            start = rollout_snippet(policy, snippet, config.n_start, "start", seed=seed, **common)  # type: ignore[arg-type]
+            random = rollout_snippet(policy, snippet, config.n_rsi, "random", seed=seed + 1, **common)  # type: ignore[arg-type]
         results[snippet] = (start, random)
     return write_rollout_file(path, clip_id, results, config.n_start, config.n_rsi)
 

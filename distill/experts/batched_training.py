@@ -26,6 +26,7 @@ import numpy as np
 import torch
 from tensordict import TensorDict
 
+from distill.experts.batched_evaluation import evaluate_policies_batched
 from distill.experts.config import BatchedExpertConfig, EvaluationConfig
 from distill.experts.evaluation import evaluate_policy
 from distill.experts.files import ExpertDir, expert_dir_for, write_clip_info
@@ -110,7 +111,7 @@ class _Learner:
 
 def _settings(config: BatchedExpertConfig) -> dict:
     """Settings a checkpoint must share to be resumed (not the budget or the machine)."""
-    ignore = {"total_steps", "device", "eval_every", "final_eval_episodes", "checkpoint_every"}
+    ignore = {"total_steps", "device", "eval_every", "eval_episodes", "final_eval_episodes", "checkpoint_every"}
     return {k: v for k, v in asdict(config).items() if k not in ignore}
 
 
@@ -314,6 +315,7 @@ def train_experts_batched(
     with stop_requests() as stop:
         observations = env.reset()
         started = time.monotonic()
+        _evaluate_due(learners, env, keys, config, progress, started)  # step 0: curves start untrained
         while any(learner.steps < config.total_steps for learner in learners):
             observations = _collect(env, learners, observations, keys, config)
             for learner in learners:
@@ -375,41 +377,72 @@ def _update(learner: _Learner, env: BatchedTrackingEnv, observations, keys, conf
 
 
 def _record(learners, env, keys, config, finished, progress, started) -> None:
-    """Scores since the last record, best policies, checkpoints and finished experts."""
-    sizes = env.observation_sizes
+    """Evaluations (the seed's protocol, batched), best policies, checkpoints and finished experts."""
+    _evaluate_due(learners, env, keys, config, progress, started)
     for learner in learners:
-        if (
-            learner.steps >= learner.next_eval
-            and learner.episode_sums is not None
-            and float(learner.episode_sums[2]) > 0
-        ):
-            reward, length, episodes = (float(v) for v in learner.episode_sums)
-            record = {
-                "steps": learner.steps,
-                "normalized_reward": reward / episodes,
-                "normalized_length": length / episodes,
-                "episodes": int(episodes),
-                "seconds": round(time.monotonic() - started, 1),
-            }
-            learner.evaluations.append(record)
-            learner.episode_sums = None
-            learner.next_eval = learner.steps + config.eval_every
-            write_json(learner.expert.evaluations, learner.evaluations)
-            if learner.best is None or record["normalized_reward"] > learner.best["normalized_reward"]:
-                learner.best = record
-                export_policy(learner, keys, sizes, config).save(learner.expert)
-            if progress:
-                print(
-                    f"{learner.snippet}: step {learner.steps:,} of {config.total_steps:,}  normalised length "
-                    f"{record['normalized_length']:.3f}  reward {record['normalized_reward']:.3f}  "
-                    f"({learner.steps / max(record['seconds'], 1e-9):,.0f} steps/s per snippet)",
-                    flush=True,
-                )
         if learner.steps >= learner.next_checkpoint and learner.steps < config.total_steps:
             learner.next_checkpoint = learner.steps + config.checkpoint_every
             _save_checkpoint(learner, config)
         if learner.steps >= config.total_steps and learner.snippet not in finished and not learner.expert.is_done():
             finished[learner.snippet] = _finish(learner, env, keys, config)
+
+
+def _evaluate_due(learners, env, keys, config, progress, started) -> None:
+    """Evaluates, together, every learner whose next evaluation is due."""
+    due = [learner for learner in learners if learner.steps >= learner.next_eval]
+    if not due:
+        return
+    policies = {learner.snippet: export_policy(learner, keys, env.observation_sizes, config) for learner in due}
+    results = evaluate_policies_batched(
+        policies, _evaluation_config(config), env.config.clips, str(env.device), config.worlds_per_snippet
+    )
+    for learner in due:
+        _keep_evaluation(learner, results[learner.snippet], policies[learner.snippet], config, progress, started)
+
+
+def _evaluation_config(config: BatchedExpertConfig, episodes: int | None = None) -> EvaluationConfig:
+    return EvaluationConfig(
+        episodes=config.eval_episodes if episodes is None else episodes,
+        init="random",
+        min_steps=config.eval_min_steps,
+        action_noise=config.eval_action_noise,
+        termination_threshold=config.termination_threshold,
+        seed=config.seed,
+    )
+
+
+def _keep_evaluation(learner: _Learner, result, policy: ExpertPolicy, config, progress: bool, started: float) -> None:
+    """Appends an evaluation record (with the training episodes' scores) and saves a new best policy."""
+    record = {
+        "steps": learner.steps,
+        "normalized_reward": result.normalized_reward,
+        "normalized_length": result.normalized_length,
+        "episode_return": result.episode_return,
+        "episode_length": result.episode_length,
+        "seconds": round(time.monotonic() - started, 1),
+    }
+    sums = learner.episode_sums
+    if sums is not None and float(sums[2]) > 0:
+        reward, length, episodes = (float(v) for v in sums)
+        record["training_episodes"] = {
+            "normalized_reward": reward / episodes,
+            "normalized_length": length / episodes,
+            "episodes": int(episodes),
+        }
+    learner.episode_sums = None
+    learner.evaluations.append(record)
+    learner.next_eval = learner.steps + config.eval_every
+    write_json(learner.expert.evaluations, learner.evaluations)
+    if learner.best is None or record["normalized_reward"] > learner.best["normalized_reward"]:
+        learner.best = record
+        policy.save(learner.expert)
+    if progress:
+        print(
+            f"{learner.snippet}: step {learner.steps:,} of {config.total_steps:,}  normalised length "
+            f"{record['normalized_length']:.3f}  reward {record['normalized_reward']:.3f}  "
+            f"({learner.steps / max(record['seconds'], 1e-9):,.0f} steps/s per snippet)",
+            flush=True,
+        )
 
 
 def _finish(learner: _Learner, env: BatchedTrackingEnv, keys, config: BatchedExpertConfig) -> dict:
@@ -428,19 +461,14 @@ def _finish(learner: _Learner, env: BatchedTrackingEnv, keys, config: BatchedExp
         "engine": "warp",
         "config": asdict(config),
     }
-    if config.final_eval_episodes > 0:
-        result = evaluate_policy(
-            policy,
-            learner.snippet,
-            EvaluationConfig(
-                episodes=config.final_eval_episodes,
-                termination_threshold=config.termination_threshold,
-                seed=config.seed,
-            ),
-            clips=env.config.clips,
-            walker=env.walker,
-        )
-        summary["cpu_evaluation"] = result.to_json()
+    if config.final_eval_episodes > 0:  # the best policy once more on each engine, same protocol
+        protocol = _evaluation_config(config, config.final_eval_episodes)
+        cpu = evaluate_policy(policy, learner.snippet, protocol, clips=env.config.clips, walker=env.walker)
+        batched = evaluate_policies_batched(
+            {learner.snippet: policy}, protocol, env.config.clips, str(env.device), config.worlds_per_snippet
+        )[learner.snippet]
+        summary["cpu_evaluation"] = cpu.to_json()
+        summary["batched_evaluation"] = batched.to_json()
     write_json(expert.done, summary)
     shutil.rmtree(expert.checkpoint_dir, ignore_errors=True)
     return summary

@@ -131,8 +131,13 @@ class BatchedExpertConfig:
         residual_actions: Actions are offsets from the reference's next pose.
         termination_threshold: Tracking error that ends an episode (seed: 0.3).
         train_min_steps: Random training starts exclude the last ``train_min_steps + 1`` frames.
-        eval_every: Record the training episodes' scores and keep the best policy every this many steps.
-        final_eval_episodes: Episodes of the seed's evaluation on the CPU env for each finished expert (0: none).
+        eval_every: Evaluate every this many steps (the seed's protocol, on the batched engine) and keep
+            the best policy by normalised reward.
+        eval_episodes: Episodes per snippet and evaluation.
+        eval_min_steps: Evaluation starts exclude the last ``eval_min_steps + 1`` frames (30).
+        eval_action_noise: Action noise during evaluation (deterministic policy plus this noise).
+        final_eval_episodes: Episodes of the same evaluation on the CPU env for each finished expert
+            (0: none), to compare the engines.
         checkpoint_every: Save resumable checkpoints every this many steps (per snippet).
         device: ``auto``, ``cpu`` (Warp's CPU device: for tests) or ``cuda[:N]``.
         seed: Random seed.
@@ -156,6 +161,9 @@ class BatchedExpertConfig:
     termination_threshold: float = 0.3
     train_min_steps: int = 9
     eval_every: int = 1_000_000
+    eval_episodes: int = 1000
+    eval_min_steps: int = 29
+    eval_action_noise: float = 0.1
     final_eval_episodes: int = 100
     checkpoint_every: int = 2_000_000
     device: str = "auto"

@@ -136,6 +136,10 @@ class ExpertPolicy(nn.Module):
         """GAE parameter of its training."""
         return self.spec.gae_lambda
 
+    def observation_statistics(self) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """Copies of the per-key observation means and variances the policy normalises with."""
+        return {k: v.copy() for k, v in self._mean.items()}, {k: v.copy() for k, v in self._var.items()}
+
     def features(self, observations: dict[str, np.ndarray]) -> torch.Tensor:
         """Normalised, clipped, concatenated observations ``(N, D)`` (batched inputs)."""
         clip = self.spec.obs_clip

@@ -44,9 +44,12 @@ def write_sb3_files(policy: ExpertPolicy, expert: ExpertDir, tracking: TrackingC
         epsilon=spec.obs_epsilon,
         gamma=spec.gamma,
     )
+    statistics = venv.obs_rms  # one RunningMeanStd per key for dict observations
+    assert isinstance(statistics, dict)
+    means, variances = policy.observation_statistics()
     for key in policy.keys:
-        venv.obs_rms[key].mean = policy._mean[key].copy()
-        venv.obs_rms[key].var = policy._var[key].copy()
+        statistics[key].mean = means[key]
+        statistics[key].var = variances[key]
     settings = PpoSettings(
         learning_rate=3e-4,
         steps_per_env=64,

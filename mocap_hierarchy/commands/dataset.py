@@ -28,6 +28,8 @@ def _rollout(args: argparse.Namespace) -> None:
     from distill.experts.fanout import run_jobs, summarise
 
     config = dataclass_from_args(RolloutConfig, args)
+    if config.engine == "warp" and (args.workers > 1 or args.ray is not None):
+        raise ValueError("--engine warp rolls every clip out in this process on one device; drop --workers/--ray")
     jobs = rollout_jobs(args.experts, args.out, config, args.clips)
     if args.workers <= 1 and args.ray is None:
         for job in jobs:

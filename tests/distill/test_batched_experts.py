@@ -18,7 +18,7 @@ from distill.experts.files import ExpertDir, expert_dir_for
 from distill.experts.policy import ExpertPolicy
 from distill.experts.sb3_import import convert_sb3_expert
 from foundation.interrupts import StopFlag, TrainingStopped
-from tasks.tracking.env import ClipTrackingEnv
+from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 
 SNIPPETS = ["SYN_wave-0-60", "SYN_walk_slow-0-60"]
 TINY = BatchedExpertConfig(
@@ -29,6 +29,7 @@ TINY = BatchedExpertConfig(
     epochs=2,
     hidden_layers=(32, 32),
     eval_every=64,
+    eval_episodes=4,
     checkpoint_every=128,
     final_eval_episodes=3,
     device="cpu",
@@ -51,9 +52,11 @@ def test_every_snippet_gets_a_complete_expert_directory(trained):
         assert not expert.checkpoint_dir.exists()
         done = json.loads(expert.done.read_text())
         assert done["steps"] == 256 and done["engine"] == "warp"
-        assert done["cpu_evaluation"]["config"]["min_steps"] == 29  # the seed's protocol, on the CPU env
+        assert done["cpu_evaluation"]["config"]["min_steps"] == 29  # the seed's protocol, on both engines
+        assert done["batched_evaluation"]["config"]["engine"] == "warp"
         records = json.loads(expert.evaluations.read_text())
-        assert [r["steps"] for r in records] == [128, 256]
+        assert [r["steps"] for r in records] == [0, 128, 256]
+        assert len(records[1]["training_episodes"]) == 3 and len(records[0]) == 6
     assert train_experts_batched(SNIPPETS, out, TINY, progress=False) == {}  # done experts are skipped
 
 
@@ -128,5 +131,76 @@ def test_a_stop_saves_checkpoints_and_the_same_call_resumes(tmp_path, clip_libra
     finished = train_experts_batched(SNIPPETS[:1], tmp_path, TINY, clips=str(clip_library), progress=False)
     assert finished[SNIPPETS[0]]["steps"] == 256
     records = json.loads(expert.evaluations.read_text())
-    assert [r["steps"] for r in records] == [128, 256]  # the first record survived the stop
+    assert [r["steps"] for r in records] == [0, 128, 256]  # the records before the stop survived it
     assert set(saved) == set(ExpertPolicy.load(expert).state_dict())
+
+
+def test_batched_rollouts_write_the_same_dataset_format(tmp_path, clip_library):
+    from distill.dataset.reader import RolloutDataset
+    from distill.dataset.writer import PlaybackPolicy, RolloutConfig, rollout_clip
+
+    snippet = "SYN_wave-0-60"
+    config = RolloutConfig(n_start=3, n_rsi=4, engine="warp", device="cpu", worlds=2)
+    path = rollout_clip("SYN_wave", {snippet: PlaybackPolicy()}, tmp_path, config, clips=str(clip_library))
+    dataset = RolloutDataset([path])
+    assert [e.from_start for e in dataset.episodes] == [True] * 3 + [False] * 4
+    cpu = ClipTrackingEnv(
+        TrackingConfig(snippets=(snippet,), clips=str(clip_library), ref_steps=(1, 2, 3, 4, 5), observables="rollout")
+    )
+    first, _ = cpu.reset(options={"start_step": 0})
+    flat_first = np.concatenate([first[k] for k in sorted(first)])
+    time_column = dataset.observable_indices["walker/time_in_clip"][0]
+    for episode in dataset.episodes:
+        observations = dataset.read(episode, "observations/proprioceptive")
+        assert observations.shape == (episode.length + 1, 2868)
+        assert dataset.read(episode, "actions").shape == (episode.length, 56)
+        assert np.all(np.diff(observations[:, time_column]) > 0)  # the last row ends this episode, not the next
+        if episode.from_start:
+            np.testing.assert_allclose(observations[0], flat_first, atol=5e-4)
+    with pytest.raises(ValueError, match="engine must be"):
+        rollout_clip("SYN_wave", {snippet: PlaybackPolicy()}, tmp_path / "x", RolloutConfig(engine="gpu"))
+
+
+def test_cpu_and_batched_evaluations_of_one_expert_agree(trained, clip_library):
+    from distill.experts.batched_evaluation import evaluate_policies_batched
+    from distill.experts.config import EvaluationConfig
+    from distill.experts.evaluation import evaluate_policy
+
+    out, _ = trained
+    policies = {s: ExpertPolicy.load(expert_dir_for(out, s)) for s in SNIPPETS}
+    protocol = EvaluationConfig(episodes=3, init="start", action_noise=0.0)  # deterministic: same episodes
+    batched = evaluate_policies_batched(policies, protocol, str(clip_library), device="cpu", worlds_per_snippet=2)
+    for snippet, policy in policies.items():
+        cpu = evaluate_policy(policy, snippet, protocol, clips=str(clip_library))
+        assert batched[snippet].per_episode["length"] == cpu.per_episode["length"]
+        np.testing.assert_allclose(batched[snippet].per_episode["return"], cpu.per_episode["return"], rtol=1e-4)
+        assert batched[snippet].normalized_reward == pytest.approx(cpu.normalized_reward, rel=1e-4)
+
+
+def test_the_command_line_trains_with_the_warp_engine_and_refuses_flags_of_the_other(tmp_path, clip_library, capsys):
+    from mocap_hierarchy.cli import main
+
+    listing = tmp_path / "snippets.txt"
+    listing.write_text("SYN_wave-0-60\n")
+    common = ["expert", "train-many", "--snippets", str(listing), "--out", str(tmp_path / "experts")]
+    assert main([*common, "--engine", "warp", "--learning-rates", "1e-4"]) == 2
+    assert "--learning-rates do not apply to --engine warp" in capsys.readouterr().err
+    assert main([*common, "--worlds-per-snippet", "8"]) == 2
+    assert "--worlds-per-snippet only apply to --engine warp" in capsys.readouterr().err
+    tiny = ["--steps", "128", "--worlds-per-snippet", "8", "--steps-per-env", "16", "--minibatches", "2"]
+    tiny += [
+        "--hidden-layers",
+        "16",
+        "--eval-episodes",
+        "2",
+        "--final-eval-episodes",
+        "0",
+        "--clips",
+        str(clip_library),
+    ]
+    assert main([*common, "--engine", "warp", "--device", "cpu", *tiny]) == 0
+    assert "SYN_wave-0-60" in capsys.readouterr().out
+    assert expert_dir_for(tmp_path / "experts", "SYN_wave-0-60").is_done()
+    rollout = ["rollout", "--experts", str(tmp_path / "experts"), "--out", str(tmp_path / "data"), "--engine", "warp"]
+    assert main([*rollout, "--workers", "2"]) == 2
+    assert "drop --workers/--ray" in capsys.readouterr().err

@@ -60,6 +60,8 @@ class EpisodeEnds:
         normalized_episode_length: MoCapAct's normalised length (1: tracked to the end).
         normalized_episode_reward: MoCapAct's normalised reward.
         snippet: Index of the snippet the episode tracked.
+        final_observations: The observations that ended each finished episode (before its
+            world was reset); only with ``keep_final_observations``.
     """
 
     done: torch.Tensor
@@ -68,6 +70,7 @@ class EpisodeEnds:
     normalized_episode_length: torch.Tensor
     normalized_episode_reward: torch.Tensor
     snippet: torch.Tensor
+    final_observations: dict[str, torch.Tensor] | None = None
 
 
 class BatchedTrackingEnv:
@@ -82,6 +85,12 @@ class BatchedTrackingEnv:
         seed: Seeds starts, snippet draws and action noise.
         capacity: Contacts and constraint rows allocated per world.
         max_frames: Longest snippet the reference buffers hold (None: the longest given).
+        keep_final_observations: Return each finished episode's last observations in
+            :attr:`EpisodeEnds.final_observations` (costs one more observation pass per reset).
+
+    Attributes:
+        applied_actions: The joint targets the last step applied ``(N, 56)`` (after residuals,
+            noise and clipping).
     """
 
     def __init__(
@@ -89,10 +98,11 @@ class BatchedTrackingEnv:
         config: TrackingConfig | None = None,
         num_worlds: int = 1024,
         device: str = "auto",
-        world_snippets: Sequence[int] | None = None,
+        world_snippets: Sequence[int] | np.ndarray | None = None,
         seed: int = 0,
         capacity: ContactCapacity | None = None,
         max_frames: int | None = None,
+        keep_final_observations: bool = False,
     ) -> None:
         warp_device, torch_device = resolve_device(device)
         self.reference_env = cpu = ClipTrackingEnv(config)
@@ -128,6 +138,8 @@ class BatchedTrackingEnv:
         self.episode_return = torch.zeros(num_worlds, dtype=torch.float64, device=self.device)
         self.unstable_resets = torch.zeros((), dtype=torch.long, device=self.device)
         self._steps = 0
+        self.keep_final_observations = keep_final_observations
+        self.applied_actions = torch.zeros(num_worlds, self.action_size, device=self.device)
         self._state: BatchedWalkerState | None = None
         self._previous: BatchedWalkerState | None = None
 
@@ -178,7 +190,7 @@ class BatchedTrackingEnv:
         self._state = state.where(mask, self._state)
         self._previous = state.where(mask, self._previous)  # type: ignore[arg-type]
 
-    def _pin(self, world_snippets: Sequence[int]) -> torch.Tensor:
+    def _pin(self, world_snippets: Sequence[int] | np.ndarray) -> torch.Tensor:
         pinned = np.asarray(world_snippets, dtype=np.int64)
         count = len(self.config.snippets)
         if pinned.shape != (self.num_worlds,):
@@ -282,6 +294,7 @@ class BatchedTrackingEnv:
             noise = torch.randn(absolute.shape, generator=self._generator, device=self.device)
             absolute = (absolute + self.config.action_noise * noise).clamp(-1.0, 1.0)
         self.physics.control_step(absolute)
+        self.applied_actions = absolute
         self._steps += 1
         if self._steps % CAPACITY_CHECK_EVERY == 0:
             self.physics.check_capacity()
@@ -301,6 +314,8 @@ class BatchedTrackingEnv:
         ends = self._episode_ends(done)
         self.unstable_resets = self.unstable_resets + unstable.sum()
         if bool(done.any()):
+            if self.keep_final_observations:
+                ends.final_observations = self.observations()
             self._start_episodes(done)
         return self.observations(), reward, terminated, truncated, ends
 

@@ -90,22 +90,23 @@ class WarpPhysics:
         self.view.ctrl.copy_(ctrl)
         if self.device == "cpu":
             self._advance()
-            return
-        if self._graph is None:
+        elif self._graph is None:
             self._advance()  # compiles every kernel before capture
             with self.wp.ScopedDevice(self.device), self.wp.ScopedCapture() as capture:
                 self._advance()
             self._graph = capture.graph
-            return
-        self.wp.capture_launch(self._graph)
+        else:
+            with self.wp.ScopedDevice(self.device):
+                self.wp.capture_launch(self._graph)
+        if self.subtree_velocity:  # allocates its scratch arrays, so it stays out of the captured graph
+            with self.wp.ScopedDevice(self.device):
+                self.mjw.subtree_vel(self.model, self.data)
 
     def _advance(self) -> None:
         with self.wp.ScopedDevice(self.device):
             for _ in range(PHYSICS_STEPS_PER_CONTROL_STEP):
                 self.mjw.step(self.model, self.data)
             self.mjw.forward(self.model, self.data)
-            if self.subtree_velocity:
-                self.mjw.subtree_vel(self.model, self.data)
 
     def reset_worlds(self, worlds: torch.Tensor, qpos: torch.Tensor, qvel: torch.Tensor) -> None:
         """Resets the worlds in the bool mask ``worlds`` to the given poses, others untouched.
