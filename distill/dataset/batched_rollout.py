@@ -2,7 +2,7 @@
 
 :func:`rollout_snippet_batched` runs up to ``worlds`` episodes of one snippet
 together in a :class:`tasks.tracking.batched.BatchedTrackingEnv` and returns
-them as :class:`distill.dataset.writer.Episode` objects, so
+them as :class:`distill.dataset.episodes.Episode` objects, so
 :func:`distill.dataset.writer.write_rollout_file` stores them in the one A.2
 format. The expert acts on the host (its file format is NumPy in, NumPy out);
 the physics, observations and rewards stay on the device.
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from distill.dataset.writer import ROLLOUT_REF_STEPS, Episode, RolloutPolicy, gae
+from distill.dataset.episodes import ROLLOUT_REF_STEPS, Episode, RolloutPolicy, gae
 from tasks.observables import OBSERVABLE_SETS
 from tasks.tracking.batched import BatchedTrackingEnv
 from tasks.tracking.env import TrackingConfig

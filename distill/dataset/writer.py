@@ -14,9 +14,7 @@ from __future__ import annotations
 
 import os
 from collections import defaultdict
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Protocol
 
 import h5py
 import numpy as np
@@ -24,11 +22,17 @@ from tqdm.auto import tqdm
 
 from distill.dataset import schema
 from distill.dataset.config import RolloutConfig  # defined there (light), used and re-exported here
+from distill.dataset.episodes import (  # noqa: F401 (defined there, shared with the batched engine; re-exported)
+    ROLLOUT_REF_STEPS,
+    Episode,
+    PlaybackPolicy,
+    RolloutPolicy,
+    gae,
+)
 from distill.dataset.metrics import write_dataset_metrics
 from distill.experts.fanout import Job
 from distill.experts.files import find_experts
 from distill.experts.loading import load_expert
-from distill.experts.policy import ExpertOutput, gaussian_log_prob
 from foundation.atomic import atomic_path
 from foundation.lockstep import Lockstep
 from foundation.provenance import library_version
@@ -36,97 +40,6 @@ from tasks.clips.snippets import parse_snippet_id
 from tasks.observables import OBSERVABLE_SETS, observation_sizes
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 from tasks.walker import WalkerModel, build_walker
-
-ROLLOUT_REF_STEPS = (1, 2, 3, 4, 5)
-
-
-class RolloutPolicy(Protocol):
-    """What a rollout needs from an expert (``ExpertPolicy`` and ``PlaybackPolicy`` fit)."""
-
-    keys: list[str]
-
-    @property
-    def residual_actions(self) -> bool:
-        """Whether actions are offsets from the reference pose."""
-        ...
-
-    @property
-    def gamma(self) -> float:
-        """Discount factor for the advantages."""
-        ...
-
-    @property
-    def gae_lambda(self) -> float:
-        """GAE parameter."""
-        ...
-
-    def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
-        """Batched actions (see ``ExpertPolicy.act``)."""
-        ...
-
-
-@dataclass
-class PlaybackPolicy:
-    """A stand-in expert: zero residual (the reference pose) plus Gaussian noise.
-
-    Needs no training, so tests and benchmarks can build realistic datasets;
-    its values are zero.
-    """
-
-    action_std: float = 0.1
-    keys: list[str] = field(default_factory=lambda: ["walker/time_in_clip"])
-    residual_actions: bool = True
-    gamma: float = 0.95
-    gae_lambda: float = 0.95
-
-    def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
-        """Zero mean residuals, sampled with ``action_std`` when ``rng`` is given."""
-        count = len(next(iter(observations.values())))
-        mean = np.zeros((count, 56))
-        sample = mean if rng is None else mean + self.action_std * rng.standard_normal(mean.shape)
-        log_prob = gaussian_log_prob(sample, mean, self.action_std)
-        return ExpertOutput(np.clip(sample, -1, 1), mean, log_prob, np.zeros(count))
-
-
-@dataclass
-class Episode:
-    """One rolled-out episode (float32 arrays).
-
-    Attributes:
-        observations: ``(T + 1, D)`` every observable, sorted by key.
-        actions: ``(T, 56)`` sampled actions the humanoid received.
-        mean_actions: ``(T, 56)`` the expert's mean actions (absolute).
-        log_probs: ``(T,)`` log-density of the sampled policy outputs.
-        rewards: ``(T,)``.
-        values: ``(T,)`` the expert's value estimates.
-        advantages: ``(T,)`` GAE.
-        terminated: The episode ended by failing (not by reaching the end).
-        normalized_return: MoCapAct's normalised episode reward.
-        normalized_length: MoCapAct's normalised episode length.
-    """
-
-    observations: np.ndarray
-    actions: np.ndarray
-    mean_actions: np.ndarray
-    log_probs: np.ndarray
-    rewards: np.ndarray
-    values: np.ndarray
-    advantages: np.ndarray
-    terminated: bool
-    normalized_return: float
-    normalized_length: float
-
-
-def gae(rewards: np.ndarray, values: np.ndarray, gamma: float, lam: float) -> np.ndarray:
-    """Generalised advantage estimates of one episode, bootstrapping zero after its end (as MoCapAct)."""
-    advantages = np.zeros(len(rewards))
-    running = 0.0
-    for t in range(len(rewards) - 1, -1, -1):
-        next_value = values[t + 1] if t + 1 < len(values) else 0.0
-        delta = rewards[t] + gamma * next_value - values[t]
-        running = delta + gamma * lam * running
-        advantages[t] = running
-    return advantages
 
 
 def rollout_snippet(

@@ -21,6 +21,7 @@ import shutil
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -95,7 +96,7 @@ class _Learner:
     snippet: str
     expert: ExpertDir
     rows: slice
-    algorithm: object
+    ppo: Any  # rsl_rl.algorithms.PPO (imported with the gpu extra only)
     moments: RunningMoments
     steps: int = 0
     next_eval: int = 0
@@ -103,10 +104,6 @@ class _Learner:
     best: dict | None = None
     evaluations: list[dict] = field(default_factory=list)
     episode_sums: torch.Tensor | None = None  # normalised reward, normalised length, episodes since the last record
-
-    @property
-    def ppo(self):
-        return self.algorithm
 
 
 def _settings(config: BatchedExpertConfig) -> dict:
@@ -178,7 +175,7 @@ def export_policy(
     ppo = learner.ppo
     last = 2 * len(config.hidden_layers)
     state = {}
-    for ours, network in (("policy_net", ppo.actor), ("value_net", ppo.critic)):  # type: ignore[attr-defined]
+    for ours, network in (("policy_net", ppo.actor), ("value_net", ppo.critic)):
         weights = network.mlp.state_dict()
         head = "action" if ours == "policy_net" else "value"
         for name, value in weights.items():
@@ -198,8 +195,8 @@ def _checkpoint_path(expert: ExpertDir) -> Path:
 
 def _save_checkpoint(learner: _Learner, config: BatchedExpertConfig) -> None:
     ppo = learner.ppo
-    tensors = {f"actor.{k}": v for k, v in ppo.actor.state_dict().items()}  # type: ignore[attr-defined]
-    tensors.update({f"critic.{k}": v for k, v in ppo.critic.state_dict().items()})  # type: ignore[attr-defined]
+    tensors = {f"actor.{k}": v for k, v in ppo.actor.state_dict().items()}
+    tensors.update({f"critic.{k}": v for k, v in ppo.critic.state_dict().items()})
     tensors.update(
         {
             "moments.mean": learner.moments.mean,
@@ -207,7 +204,7 @@ def _save_checkpoint(learner: _Learner, config: BatchedExpertConfig) -> None:
             "moments.count": learner.moments.count,
         }
     )
-    optimizer = ppo.optimizer.state_dict()  # type: ignore[attr-defined]
+    optimizer = ppo.optimizer.state_dict()
     for index, values in optimizer["state"].items():
         for name, value in values.items():
             tensors[f"optimizer.{index}.{name}"] = torch.as_tensor(value)
@@ -218,7 +215,7 @@ def _save_checkpoint(learner: _Learner, config: BatchedExpertConfig) -> None:
         "next_checkpoint": learner.next_checkpoint,
         "best": learner.best,
         "evaluations": learner.evaluations,
-        "learning_rate": ppo.learning_rate,  # type: ignore[attr-defined]
+        "learning_rate": ppo.learning_rate,
         "param_groups": optimizer["param_groups"],
     }
     write_described(_checkpoint_path(learner.expert), tensors, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, description)
@@ -231,8 +228,8 @@ def _load_checkpoint(learner: _Learner, config: BatchedExpertConfig) -> bool:
     description, tensors = read_described(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "batched expert checkpoint")
     check_same_settings(description, _settings(config), str(path), "expert settings")
     ppo = learner.ppo
-    ppo.actor.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("actor.")})  # type: ignore[attr-defined]
-    ppo.critic.load_state_dict({k[7:]: v for k, v in tensors.items() if k.startswith("critic.")})  # type: ignore[attr-defined]
+    ppo.actor.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("actor.")})
+    ppo.critic.load_state_dict({k[7:]: v for k, v in tensors.items() if k.startswith("critic.")})
     device = learner.moments.mean.device
     learner.moments.mean = tensors["moments.mean"].to(device)
     learner.moments.var = tensors["moments.var"].to(device)
@@ -242,8 +239,8 @@ def _load_checkpoint(learner: _Learner, config: BatchedExpertConfig) -> bool:
         if key.startswith("optimizer."):
             _, index, name = key.split(".", 2)
             state.setdefault(int(index), {})[name] = value
-    ppo.optimizer.load_state_dict({"state": state, "param_groups": description["param_groups"]})  # type: ignore[attr-defined]
-    ppo.learning_rate = description["learning_rate"]  # type: ignore[attr-defined]
+    ppo.optimizer.load_state_dict({"state": state, "param_groups": description["param_groups"]})
+    ppo.learning_rate = description["learning_rate"]
     learner.steps = int(description["steps"])
     learner.next_eval = int(description["next_eval"])
     learner.next_checkpoint = int(description["next_checkpoint"])
@@ -345,12 +342,12 @@ def _collect(env: BatchedTrackingEnv, learners: list[_Learner], observations, ke
             batch = TensorDict({"policy": learner.moments.normalise(rows)}, batch_size=[rows.shape[0]])
             inputs.append(batch)
             with torch.no_grad():
-                actions[learner.rows] = learner.ppo.act(batch)  # type: ignore[attr-defined]
+                actions[learner.rows] = learner.ppo.act(batch)
         observations, reward, terminated, truncated, ends = env.step(actions)
         done = terminated | truncated
         for learner, batch in zip(learners, inputs, strict=True):
             rows = learner.rows
-            learner.ppo.process_env_step(batch, reward[rows], done[rows], {"time_outs": truncated[rows].float()})  # type: ignore[attr-defined]
+            learner.ppo.process_env_step(batch, reward[rows], done[rows], {"time_outs": truncated[rows].float()})
             finished = ends.done[rows].double()
             sums = torch.stack(
                 [
@@ -366,13 +363,13 @@ def _collect(env: BatchedTrackingEnv, learners: list[_Learner], observations, ke
 def _update(learner: _Learner, env: BatchedTrackingEnv, observations, keys, config: BatchedExpertConfig) -> None:
     ppo = learner.ppo
     if learner.steps >= config.total_steps:
-        ppo.storage.clear()  # type: ignore[attr-defined]
+        ppo.storage.clear()
         return
     rows = env.flat_observations(observations, keys)[learner.rows]
     batch = TensorDict({"policy": learner.moments.normalise(rows)}, batch_size=[rows.shape[0]])
     with torch.no_grad():
-        ppo.compute_returns(batch)  # type: ignore[attr-defined]
-    ppo.update()  # type: ignore[attr-defined]
+        ppo.compute_returns(batch)
+    ppo.update()
     learner.steps += config.steps_per_update
 
 

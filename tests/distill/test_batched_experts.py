@@ -204,3 +204,8 @@ def test_the_command_line_trains_with_the_warp_engine_and_refuses_flags_of_the_o
     rollout = ["rollout", "--experts", str(tmp_path / "experts"), "--out", str(tmp_path / "data"), "--engine", "warp"]
     assert main([*rollout, "--workers", "2"]) == 2
     assert "drop --workers/--ray" in capsys.readouterr().err
+    import warp
+
+    if not warp.get_cuda_devices():
+        assert main([*rollout, "--device", "cuda", "--clips", str(clip_library)]) == 2
+        assert "use --device cpu" in capsys.readouterr().err

@@ -1,0 +1,106 @@
+"""What a rollout produces and consumes: episodes, the expert protocol, GAE (shared by both engines).
+
+:mod:`distill.dataset.writer` (CPU environments in lockstep) and
+:mod:`distill.dataset.batched_rollout` (MuJoCo Warp) both return
+:class:`Episode` objects for :func:`distill.dataset.writer.write_rollout_file`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from distill.experts.policy import ExpertOutput, gaussian_log_prob
+
+ROLLOUT_REF_STEPS = (1, 2, 3, 4, 5)
+
+
+class RolloutPolicy(Protocol):
+    """What a rollout needs from an expert (``ExpertPolicy`` and ``PlaybackPolicy`` fit)."""
+
+    keys: list[str]
+
+    @property
+    def residual_actions(self) -> bool:
+        """Whether actions are offsets from the reference pose."""
+        ...
+
+    @property
+    def gamma(self) -> float:
+        """Discount factor for the advantages."""
+        ...
+
+    @property
+    def gae_lambda(self) -> float:
+        """GAE parameter."""
+        ...
+
+    def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
+        """Batched actions (see ``ExpertPolicy.act``)."""
+        ...
+
+
+@dataclass
+class PlaybackPolicy:
+    """A stand-in expert: zero residual (the reference pose) plus Gaussian noise.
+
+    Needs no training, so tests and benchmarks can build realistic datasets;
+    its values are zero.
+    """
+
+    action_std: float = 0.1
+    keys: list[str] = field(default_factory=lambda: ["walker/time_in_clip"])
+    residual_actions: bool = True
+    gamma: float = 0.95
+    gae_lambda: float = 0.95
+
+    def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
+        """Zero mean residuals, sampled with ``action_std`` when ``rng`` is given."""
+        count = len(next(iter(observations.values())))
+        mean = np.zeros((count, 56))
+        sample = mean if rng is None else mean + self.action_std * rng.standard_normal(mean.shape)
+        log_prob = gaussian_log_prob(sample, mean, self.action_std)
+        return ExpertOutput(np.clip(sample, -1, 1), mean, log_prob, np.zeros(count))
+
+
+@dataclass
+class Episode:
+    """One rolled-out episode (float32 arrays).
+
+    Attributes:
+        observations: ``(T + 1, D)`` every observable, sorted by key.
+        actions: ``(T, 56)`` sampled actions the humanoid received.
+        mean_actions: ``(T, 56)`` the expert's mean actions (absolute).
+        log_probs: ``(T,)`` log-density of the sampled policy outputs.
+        rewards: ``(T,)``.
+        values: ``(T,)`` the expert's value estimates.
+        advantages: ``(T,)`` GAE.
+        terminated: The episode ended by failing (not by reaching the end).
+        normalized_return: MoCapAct's normalised episode reward.
+        normalized_length: MoCapAct's normalised episode length.
+    """
+
+    observations: np.ndarray
+    actions: np.ndarray
+    mean_actions: np.ndarray
+    log_probs: np.ndarray
+    rewards: np.ndarray
+    values: np.ndarray
+    advantages: np.ndarray
+    terminated: bool
+    normalized_return: float
+    normalized_length: float
+
+
+def gae(rewards: np.ndarray, values: np.ndarray, gamma: float, lam: float) -> np.ndarray:
+    """Generalised advantage estimates of one episode, bootstrapping zero after its end (as MoCapAct)."""
+    advantages = np.zeros(len(rewards))
+    running = 0.0
+    for t in range(len(rewards) - 1, -1, -1):
+        next_value = values[t + 1] if t + 1 < len(values) else 0.0
+        delta = rewards[t] + gamma * next_value - values[t]
+        running = delta + gamma * lam * running
+        advantages[t] = running
+    return advantages
