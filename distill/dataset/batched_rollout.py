@@ -30,18 +30,10 @@ def rollout_snippet_batched(
     device: str = "auto",
     worlds: int = 1024,
 ) -> list[Episode]:
-    """Rolls a policy out on one snippet in a batched env (as :func:`~distill.dataset.writer.rollout_snippet`).
+    """Rolls a policy out on one snippet in a batched env: :func:`~distill.dataset.writer.rollout_snippet`'s episodes.
 
-    Args:
-        policy: The expert.
-        snippet: Snippet id.
-        episodes: Number of episodes.
-        init: ``start`` or ``random``.
-        clips: Clip file.
-        seed: Seed of starts and action noise.
-        min_steps: Random starts exclude the last ``min_steps + 1`` frames.
-        device: Device of the batched env.
-        worlds: Episodes run at once (at most ``episodes``).
+    The arguments are ``rollout_snippet``'s; ``device`` places the batched env and
+    ``worlds`` caps how many episodes run at once (at most ``episodes``).
     """
     config = TrackingConfig(
         snippets=(snippet,),

@@ -18,10 +18,9 @@ import numpy as np
 import torch
 
 from distill.experts.config import EvaluationConfig
-from distill.experts.evaluation import EvaluationResult
+from distill.experts.evaluation import EvaluationResult, evaluation_task
 from distill.experts.policy import ExpertPolicy
 from tasks.tracking.batched import BatchedTrackingEnv
-from tasks.tracking.env import TrackingConfig
 
 METRICS = ("normalized_reward", "normalized_length", "return", "length")
 
@@ -49,17 +48,7 @@ def evaluate_policies_batched(
     if any(p.keys != first.keys or p.residual_actions != first.residual_actions for p in policies.values()):
         raise ValueError("the experts evaluated together must share their observables and action mode")
     per = max(1, min(worlds_per_snippet, config.episodes))
-    tracking = TrackingConfig(
-        snippets=tuple(snippets),
-        clips=clips,
-        ref_steps=(0,),
-        observables=tuple(first.keys),
-        init=config.init,
-        min_steps=config.min_steps,
-        action_noise=config.action_noise,
-        termination_threshold=config.termination_threshold,
-        residual_actions=first.residual_actions,
-    )
+    tracking = evaluation_task(tuple(snippets), first, config, clips)
     env = BatchedTrackingEnv(
         tracking,
         num_worlds=per * len(snippets),

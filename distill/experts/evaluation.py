@@ -45,6 +45,23 @@ class EvaluationResult:
         return asdict(self)
 
 
+def evaluation_task(
+    snippets: tuple[str, ...], policy: ExpertPolicy, config: EvaluationConfig, clips: str | None
+) -> TrackingConfig:
+    """The task an evaluation runs: the expert's observables and action mode, the protocol's starts and noise."""
+    return TrackingConfig(
+        snippets=snippets,
+        clips=clips,
+        ref_steps=(0,),
+        observables=tuple(policy.keys),
+        init=config.init,
+        min_steps=config.min_steps,
+        action_noise=config.action_noise,
+        termination_threshold=config.termination_threshold,
+        residual_actions=policy.spec.residual_actions,
+    )
+
+
 def evaluate_policy(
     policy: ExpertPolicy,
     snippet: str,
@@ -66,17 +83,7 @@ def evaluate_policy(
     if config.episodes < 1 or config.n_envs < 1:
         raise ValueError("episodes and n_envs must be positive")
     walker = walker or build_walker()
-    tracking = TrackingConfig(
-        snippets=(snippet,),
-        clips=clips,
-        ref_steps=(0,),
-        observables=tuple(policy.keys),
-        init=config.init,
-        min_steps=config.min_steps,
-        action_noise=config.action_noise,
-        termination_threshold=config.termination_threshold,
-        residual_actions=policy.spec.residual_actions,
-    )
+    tracking = evaluation_task((snippet,), policy, config, clips)
     n_envs = min(config.n_envs, config.episodes)
     envs = [ClipTrackingEnv(tracking, walker=walker) for _ in range(n_envs)]
     lockstep = Lockstep(envs, config.episodes, [config.seed * 100_003 + i for i in range(n_envs)])
