@@ -78,10 +78,22 @@ class WarpPhysics:
                 nconmax=self.capacity.contacts,
                 njmax=self.capacity.constraints,
             )
+        self.wp.synchronize_device(warp_device)  # the uploads ran on Warp's stream; torch reads next
         self.model.opt.warn_overflow = 0  # overflows are checked and reported by check_capacity
         self._flags = int(self.model.opt.disableflags)
         self.view = _TorchViews(self.wp, self.data)
         self._graph = None
+        # Warp runs on torch's current CUDA stream, so torch's writes (controls, resets) and
+        # Warp's kernels (and its captured graph) are ordered without extra synchronisation.
+        self._stream = None
+        if warp_device != "cpu":
+            self._stream = self.wp.stream_from_torch(torch.cuda.current_stream(warp_device))
+
+    def _on_device(self):
+        """Warp's scope for this engine: its device, and on CUDA torch's stream."""
+        if self._stream is None:
+            return self.wp.ScopedDevice(self.device)
+        return self.wp.ScopedStream(self._stream)
 
     # Stepping ------------------------------------------------------------------
 
@@ -92,18 +104,18 @@ class WarpPhysics:
             self._advance()
         elif self._graph is None:
             self._advance()  # compiles every kernel before capture
-            with self.wp.ScopedDevice(self.device), self.wp.ScopedCapture() as capture:
+            with self._on_device(), self.wp.ScopedCapture() as capture:
                 self._advance()
             self._graph = capture.graph
         else:
-            with self.wp.ScopedDevice(self.device):
+            with self._on_device():
                 self.wp.capture_launch(self._graph)
         if self.subtree_velocity:  # allocates its scratch arrays, so it stays out of the captured graph
-            with self.wp.ScopedDevice(self.device):
+            with self._on_device():
                 self.mjw.subtree_vel(self.model, self.data)
 
     def _advance(self) -> None:
-        with self.wp.ScopedDevice(self.device):
+        with self._on_device():
             for _ in range(PHYSICS_STEPS_PER_CONTROL_STEP):
                 self.mjw.step(self.model, self.data)
             self.mjw.forward(self.model, self.data)
@@ -117,7 +129,7 @@ class WarpPhysics:
         the other worlds keep theirs.
         """
         view = self.view
-        with self.wp.ScopedDevice(self.device):
+        with self._on_device():
             self.mjw.reset_data(self.model, self.data, reset=self.wp.from_torch(worlds.contiguous()))
         view.qpos[worlds] = qpos.to(view.qpos.dtype)
         view.qvel[worlds] = qvel.to(view.qvel.dtype)
@@ -157,7 +169,7 @@ class WarpPhysics:
     def _forward(self, actuation: bool) -> None:
         self.model.opt.disableflags = self._flags if actuation else self._flags | self._actuation_off
         try:
-            with self.wp.ScopedDevice(self.device):
+            with self._on_device():
                 self.mjw.forward(self.model, self.data)
         finally:
             self.model.opt.disableflags = self._flags

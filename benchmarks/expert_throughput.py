@@ -1,0 +1,84 @@
+"""Expert training throughput: where the end-to-end rate goes, and which process layout wins.
+
+Trains the same snippet expert (2x256 networks unless ``--hidden-layers``) under
+several process layouts, interleaved over trials. Each layout runs twice per
+trial, with a short and a long budget; the difference cancels the start-up
+(imports, model compilation, worker spawn), so the printed rate is steady-state
+environment steps per second. Ratios are to the library's default layout
+(``n_envs`` = cores, subprocess environments, torch's default threads), measured
+in the same run.
+
+A py-spy profile of the default layout on 2 cores (``py-spy record --subprocesses``) showed
+why it is slow there. The main process spends about 55 % of its samples waiting on
+the environment workers' pipes. The two workers spend about 45 % waiting for actions.
+Three busy processes plus torch's threads share two cores.
+
+Usage::
+
+    python benchmarks/expert_throughput.py [--trials 2] [--updates 2 5] [--hidden-layers 256 256]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import statistics
+import tempfile
+import time
+
+from distill.experts.config import ExpertConfig
+from distill.experts.training import train_expert
+
+LAYOUTS: dict[str, dict] = {
+    "default (subprocess envs, torch threads: default)": {},
+    "subprocess envs, 1 torch thread": {"torch_threads": 1},
+    "2 envs in-process, 1 torch thread": {"subprocess_envs": False, "n_envs": 2, "torch_threads": 1},
+    "8 envs in-process, 1 torch thread": {"subprocess_envs": False, "n_envs": 8, "torch_threads": 1},
+}
+
+
+def seconds(config: ExpertConfig, snippet: str) -> float:
+    """Wall time of one training run into a fresh folder."""
+    with tempfile.TemporaryDirectory() as out:
+        started = time.perf_counter()
+        train_expert(snippet, out, config, progress=False)
+        return time.perf_counter() - started
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--snippet", default="SYN_walk_slow-0-182")
+    parser.add_argument("--trials", type=int, default=2)
+    parser.add_argument("--updates", type=int, nargs=2, default=(2, 5), help="short and long budget, in updates")
+    parser.add_argument("--hidden-layers", type=int, nargs="+", default=(256, 256))
+    parser.add_argument("--steps-per-update", type=int, default=4096)
+    args = parser.parse_args()
+    base = ExpertConfig(
+        steps_per_update=args.steps_per_update,
+        epochs=5,
+        minibatch_size=512,
+        learning_rates=(3e-4,),
+        hidden_layers=tuple(args.hidden_layers),
+        eval_every=10**12,
+        eval_at_start=False,
+        eval_episodes=10,
+        checkpoint_every=10**12,
+    )
+    short, long = (u * args.steps_per_update for u in args.updates)
+    rates: dict[str, list[float]] = {name: [] for name in LAYOUTS}
+    for trial in range(args.trials):
+        for name, changes in LAYOUTS.items():
+            config = dataclasses.replace(base, **changes)
+            first = seconds(dataclasses.replace(config, total_steps=short), args.snippet)
+            second = seconds(dataclasses.replace(config, total_steps=long), args.snippet)
+            rates[name].append((long - short) / (second - first))
+            print(f"trial {trial}: {name}: {rates[name][-1]:.0f} steps/s", flush=True)
+    reference = statistics.median(rates[next(iter(LAYOUTS))])
+    print(f"\nsteady-state environment steps/s, hidden layers {tuple(args.hidden_layers)} (median of {args.trials}):")
+    for name, values in rates.items():
+        median = statistics.median(values)
+        print(f"  {name:<52} {median:7.0f}  = {median / reference:.2f} x default   (trials: {values})")
+
+
+if __name__ == "__main__":
+    main()
