@@ -7,7 +7,7 @@ In one run, on one clip and the same playback-plus-noise actions:
   with the ``full`` observations and the reward (everything a policy needs) on the device;
 * optionally PPO end to end (``--ppo``): ``expert train-many --engine warp``'s loop, env plus
   rsl_rl, in environment steps per second;
-* device memory per world (CUDA only: allocated memory over the batch).
+* device memory per world (CUDA only: the memory in use on the device, as Warp reports it, over the batch).
 
 Each line prints steps per second and the ratio to the CPU env measured in the same run.
 On Warp's CPU device (no GPU) only small batches are sensible; the first batch compiles
@@ -50,9 +50,7 @@ def cpu_steps_per_second(steps: int, seed: int = 0) -> float:
 
 
 def batched_steps_per_second(worlds: int, steps: int, device: str) -> tuple[float, float | None]:
-    """World-steps/s of the batched env (resets included) and device bytes per world (CUDA only)."""
-    if torch.cuda.is_available():
-        torch.cuda.reset_peak_memory_stats()
+    """World-steps/s of the batched env (resets included) and device bytes in use per world (CUDA only)."""
     env = BatchedTrackingEnv(CONFIG, num_worlds=worlds, device=device)
     env.reset()
     generator = torch.Generator(device=env.device).manual_seed(0)

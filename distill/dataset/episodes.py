@@ -13,6 +13,7 @@ from typing import Protocol
 import numpy as np
 
 from distill.experts.policy import ExpertOutput, gaussian_log_prob
+from tasks.tracking.env import TrackingConfig
 
 ROLLOUT_REF_STEPS = (1, 2, 3, 4, 5)
 
@@ -104,3 +105,60 @@ def gae(rewards: np.ndarray, values: np.ndarray, gamma: float, lam: float) -> np
         running = delta + gamma * lam * running
         advantages[t] = running
     return advantages
+
+
+def rollout_task(snippet: str, init: str, clips: str | None, min_steps: int, residual_actions: bool) -> TrackingConfig:
+    """The tracking task rollouts run in: every observable (``rollout`` set) with ``ref_steps`` 1..5."""
+    return TrackingConfig(
+        snippets=(snippet,),
+        clips=clips,
+        ref_steps=ROLLOUT_REF_STEPS,
+        observables="rollout",
+        init=init,
+        min_steps=min_steps,
+        residual_actions=residual_actions,
+    )
+
+
+class EpisodeRecorder:
+    """Collects one episode's rows as they arrive and turns them into an :class:`Episode`.
+
+    Args:
+        first_observation: The flat observation the episode starts from.
+    """
+
+    def __init__(self, first_observation: np.ndarray) -> None:
+        self.observations = [np.asarray(first_observation, dtype=np.float32)]
+        self.actions: list[np.ndarray] = []
+        self.mean_actions: list[np.ndarray] = []
+        self.log_probs: list[float] = []
+        self.rewards: list[float] = []
+        self.values: list[float] = []
+
+    def add(self, action, mean_action, log_prob: float, reward: float, value: float, observation: np.ndarray) -> None:
+        """One step: what the humanoid received, the expert's outputs, and the observation after it."""
+        self.actions.append(action)
+        self.mean_actions.append(mean_action)
+        self.log_probs.append(float(log_prob))
+        self.rewards.append(float(reward))
+        self.values.append(float(value))
+        self.observations.append(np.asarray(observation, dtype=np.float32))
+
+    def finish(
+        self, policy: RolloutPolicy, terminated: bool, normalized_return: float, normalized_length: float
+    ) -> Episode:
+        """The finished episode, advantages computed with the expert's discount and GAE parameter."""
+        rewards = np.asarray(self.rewards, dtype=np.float64)
+        values = np.asarray(self.values, dtype=np.float64)
+        return Episode(
+            observations=np.stack(self.observations),
+            actions=np.asarray(self.actions, dtype=np.float32),
+            mean_actions=np.asarray(self.mean_actions, dtype=np.float32),
+            log_probs=np.asarray(self.log_probs, dtype=np.float32),
+            rewards=rewards.astype(np.float32),
+            values=values.astype(np.float32),
+            advantages=gae(rewards, values, policy.gamma, policy.gae_lambda).astype(np.float32),
+            terminated=bool(terminated),
+            normalized_return=float(normalized_return),
+            normalized_length=float(normalized_length),
+        )

@@ -25,9 +25,11 @@ from distill.dataset.config import RolloutConfig  # defined there (light), used 
 from distill.dataset.episodes import (  # noqa: F401 (defined there, shared with the batched engine; re-exported)
     ROLLOUT_REF_STEPS,
     Episode,
+    EpisodeRecorder,
     PlaybackPolicy,
     RolloutPolicy,
     gae,
+    rollout_task,
 )
 from distill.dataset.metrics import write_dataset_metrics
 from distill.experts.fanout import Job
@@ -38,7 +40,7 @@ from foundation.lockstep import Lockstep
 from foundation.provenance import library_version
 from tasks.clips.snippets import parse_snippet_id
 from tasks.observables import OBSERVABLE_SETS, observation_sizes
-from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
+from tasks.tracking.env import ClipTrackingEnv
 from tasks.walker import WalkerModel, build_walker
 
 
@@ -67,65 +69,41 @@ def rollout_snippet(
         min_steps: Random starts exclude the last ``min_steps + 1`` frames.
     """
     walker = walker or build_walker()
-    config = TrackingConfig(
-        snippets=(snippet,),
-        clips=clips,
-        ref_steps=ROLLOUT_REF_STEPS,
-        observables="rollout",
-        init=init,
-        min_steps=min_steps,
-        residual_actions=policy.residual_actions,
-    )
+    config = rollout_task(snippet, init, clips, min_steps, policy.residual_actions)
     rng = np.random.default_rng(seed)
     n_envs = max(1, min(n_envs, episodes))
     envs = [ClipTrackingEnv(config, walker=walker) for _ in range(n_envs)]
     lockstep = Lockstep(envs, episodes, [seed * 7919 + i for i in range(n_envs)])
     keys = list(OBSERVABLE_SETS["rollout"])
     finished: list[list[Episode]] = [[] for _ in range(n_envs)]
-    buffers = [_new_buffer(observation, keys) for observation in lockstep.observations]
+    recorders = [EpisodeRecorder(_flatten(observation, keys)) for observation in lockstep.observations]
     while lockstep.active:
         output = policy.act(lockstep.batch(policy.keys), rng)
-        for row, i in enumerate(lockstep.active):  # before stepping moves the reference on
-            buffers[i]["mean_actions"].append(envs[i].absolute_action(output.mean_actions[row]))
+        # before stepping moves the reference on
+        means = [envs[i].absolute_action(output.mean_actions[row]) for row, i in enumerate(lockstep.active)]
         for row, step in enumerate(lockstep.step(output.actions)):
-            buffer = buffers[step.env]
-            buffer["actions"].append(step.info["action"])
-            buffer["log_probs"].append(output.log_probs[row])
-            buffer["rewards"].append(step.reward)
-            buffer["values"].append(output.values[row])
-            buffer["observations"].append(_flatten(step.observation, keys))
+            recorder = recorders[step.env]
+            recorder.add(
+                step.info["action"],
+                means[row],
+                output.log_probs[row],
+                step.reward,
+                output.values[row],
+                _flatten(step.observation, keys),
+            )
             if step.done:
-                finished[step.env].append(_episode(buffer, step.terminated, step.info, policy))
+                info = step.info
+                episode = recorder.finish(
+                    policy, step.terminated, info["normalized_episode_reward"], info["normalized_episode_length"]
+                )
+                finished[step.env].append(episode)
                 if step.next_observation is not None:
-                    buffers[step.env] = _new_buffer(step.next_observation, keys)
+                    recorders[step.env] = EpisodeRecorder(_flatten(step.next_observation, keys))
     return [episode for per_env in finished for episode in per_env]
-
-
-def _new_buffer(first_observation: dict[str, np.ndarray], keys: list[str]) -> dict[str, list]:
-    buffer: dict[str, list] = {k: [] for k in ("actions", "mean_actions", "log_probs", "rewards", "values")}
-    buffer["observations"] = [_flatten(first_observation, keys)]
-    return buffer
 
 
 def _flatten(observation: dict[str, np.ndarray], keys: list[str]) -> np.ndarray:
     return np.concatenate([observation[k] for k in keys], dtype=np.float32)
-
-
-def _episode(buffer: dict, terminated: bool, info: dict, policy: RolloutPolicy) -> Episode:
-    rewards = np.asarray(buffer["rewards"], dtype=np.float64)
-    values = np.asarray(buffer["values"], dtype=np.float64)
-    return Episode(
-        observations=np.stack(buffer["observations"]),
-        actions=np.asarray(buffer["actions"], dtype=np.float32),
-        mean_actions=np.asarray(buffer["mean_actions"], dtype=np.float32),
-        log_probs=np.asarray(buffer["log_probs"], dtype=np.float32),
-        rewards=rewards.astype(np.float32),
-        values=values.astype(np.float32),
-        advantages=gae(rewards, values, policy.gamma, policy.gae_lambda).astype(np.float32),
-        terminated=bool(terminated),
-        normalized_return=float(info["normalized_episode_reward"]),
-        normalized_length=float(info["normalized_episode_length"]),
-    )
 
 
 # Writing -------------------------------------------------------------------------

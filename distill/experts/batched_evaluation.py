@@ -85,15 +85,7 @@ def evaluate_policies_batched(
                 started[index] += 1
             else:
                 active[world] = False
+    config_record = {**asdict(config), "engine": "warp"}
     return {
-        snippet: EvaluationResult(
-            snippet=snippet,
-            normalized_reward=float(np.mean(found["normalized_reward"])),
-            normalized_length=float(np.mean(found["normalized_length"])),
-            episode_return=float(np.mean(found["return"])),
-            episode_length=float(np.mean(found["length"])),
-            per_episode=found,
-            config={**asdict(config), "engine": "warp"},
-        )
-        for snippet, found in metrics.items()
+        snippet: EvaluationResult.from_episodes(snippet, found, config_record) for snippet, found in metrics.items()
     }

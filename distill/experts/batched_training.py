@@ -29,7 +29,7 @@ from tensordict import TensorDict
 
 from distill.experts.batched_evaluation import evaluate_policies_batched
 from distill.experts.config import BatchedExpertConfig, EvaluationConfig
-from distill.experts.evaluation import evaluate_policy
+from distill.experts.evaluation import evaluate_policy, training_task
 from distill.experts.files import ExpertDir, expert_dir_for, write_clip_info
 from distill.experts.policy import ExpertPolicy, ExpertSpec
 from distill.experts.sb3_export import write_sb3_files
@@ -40,27 +40,12 @@ from foundation.provenance import provenance
 from foundation.resume import check_same_settings
 from tasks.clips.snippets import parse_snippet_id
 from tasks.tracking.batched import BatchedTrackingEnv
-from tasks.tracking.env import TrackingConfig
 
 CHECKPOINT_FORMAT = "mocap_hierarchy.batched_expert_checkpoint"
 CHECKPOINT_VERSION = 1
 OBS_CLIP = 10.0
 OBS_EPSILON = 1e-8
 """``VecNormalize``'s defaults, so the expert file describes the normalisation exactly."""
-
-
-def expert_tracking_config(snippets: tuple[str, ...], clips: str | None, config: BatchedExpertConfig) -> TrackingConfig:
-    """The task every expert trains on (as the CPU trainer's: expert observables, ``ref_steps`` 0)."""
-    return TrackingConfig(
-        snippets=snippets,
-        clips=clips,
-        ref_steps=(0,),
-        observables="expert",
-        init="random",
-        min_steps=config.train_min_steps,
-        termination_threshold=config.termination_threshold,
-        residual_actions=config.residual_actions,
-    )
 
 
 class RunningMoments:
@@ -280,7 +265,7 @@ def train_experts_batched(
     todo = [s for s in ids if not expert_dir_for(out, s).is_done()]
     if not todo:
         return {}
-    tracking = expert_tracking_config(tuple(todo), clips, config)
+    tracking = training_task(tuple(todo), clips, config)
     per = config.worlds_per_snippet
     env = BatchedTrackingEnv(
         tracking,
@@ -448,7 +433,7 @@ def _finish(learner: _Learner, env: BatchedTrackingEnv, keys, config: BatchedExp
     if not expert.sidecar.is_file():
         export_policy(learner, keys, env.observation_sizes, config).save(expert)
     policy = ExpertPolicy.load(expert)
-    tracking = expert_tracking_config((learner.snippet,), env.config.clips, config)
+    tracking = training_task((learner.snippet,), env.config.clips, config)
     write_sb3_files(policy, expert, tracking)
     summary: dict = {
         "snippet": learner.snippet,

@@ -11,7 +11,11 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from tqdm.auto import tqdm
 
-from distill.experts.config import EvaluationConfig  # defined there (light), used and re-exported here
+from distill.experts.config import (  # EvaluationConfig: defined there (light), used and re-exported here
+    BatchedExpertConfig,
+    EvaluationConfig,
+    ExpertConfig,
+)
 from distill.experts.policy import ExpertPolicy
 from foundation.lockstep import Lockstep
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
@@ -43,6 +47,35 @@ class EvaluationResult:
     def to_json(self) -> dict:
         """A JSON-ready dict."""
         return asdict(self)
+
+    @classmethod
+    def from_episodes(cls, snippet: str, per_episode: dict[str, list[float]], config: dict) -> EvaluationResult:
+        """The means of per-episode ``normalized_reward``, ``normalized_length``, ``return`` and ``length``."""
+        return cls(
+            snippet=snippet,
+            normalized_reward=float(np.mean(per_episode["normalized_reward"])),
+            normalized_length=float(np.mean(per_episode["normalized_length"])),
+            episode_return=float(np.mean(per_episode["return"])),
+            episode_length=float(np.mean(per_episode["length"])),
+            per_episode=per_episode,
+            config=config,
+        )
+
+
+def training_task(
+    snippets: tuple[str, ...], clips: str | None, config: ExpertConfig | BatchedExpertConfig
+) -> TrackingConfig:
+    """The task experts train on (either engine): expert observables, ``ref_steps`` 0, random starts."""
+    return TrackingConfig(
+        snippets=snippets,
+        clips=clips,
+        ref_steps=(0,),
+        observables="expert",
+        init="random",
+        min_steps=config.train_min_steps,
+        termination_threshold=config.termination_threshold,
+        residual_actions=config.residual_actions,
+    )
 
 
 def evaluation_task(
@@ -98,12 +131,4 @@ def evaluate_policy(
                 metrics["length"].append(step.info["episode_length"])
                 bar.update()
     bar.close()
-    return EvaluationResult(
-        snippet=snippet,
-        normalized_reward=float(np.mean(metrics["normalized_reward"])),
-        normalized_length=float(np.mean(metrics["normalized_length"])),
-        episode_return=float(np.mean(metrics["return"])),
-        episode_length=float(np.mean(metrics["length"])),
-        per_episode=metrics,
-        config=asdict(config),
-    )
+    return EvaluationResult.from_episodes(snippet, metrics, asdict(config))

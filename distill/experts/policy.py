@@ -229,6 +229,21 @@ def _read_format_1(expert: ExpertDir) -> tuple[dict, dict[str, torch.Tensor]]:
     return data, tensors
 
 
+SB3_MODULES = {
+    "policy_net": "mlp_extractor.policy_net",
+    "value_net": "mlp_extractor.value_net",
+    "action": "action_net",
+    "value": "value_net",
+}
+"""Our module names -> stable-baselines3's ``MultiInputPolicy`` names (same layers, same order)."""
+
+
+def sb3_name(name: str) -> str:
+    """The stable-baselines3 state-dict key of one of :class:`ExpertPolicy`'s parameters."""
+    prefix, rest = name.split(".", 1)
+    return f"{SB3_MODULES[prefix]}.{rest}"
+
+
 def policy_from_sb3(model, vecnormalize, spec_fields: dict) -> ExpertPolicy:
     """Builds an :class:`ExpertPolicy` from a stable-baselines3 PPO and its VecNormalize.
 
@@ -257,15 +272,8 @@ def policy_from_sb3(model, vecnormalize, spec_fields: dict) -> ExpertPolicy:
     variances = {k: vecnormalize.obs_rms[k].var for k in sizes}
     policy = ExpertPolicy(spec, means, variances)
     source = model.policy.state_dict()
-    mapping = {
-        "policy_net": "mlp_extractor.policy_net",
-        "value_net": "mlp_extractor.value_net",
-        "action": "action_net",
-        "value": "value_net",
-    }
     state = {}
     for name in policy.state_dict():
-        prefix, rest = name.split(".", 1)
-        state[name] = source[f"{mapping[prefix]}.{rest}"].detach().cpu().float()
+        state[name] = source[sb3_name(name)].detach().cpu().float()
     policy.load_state_dict(state)
     return policy

@@ -9,20 +9,10 @@ every expert directory looks the same whichever engine trained it.
 
 from __future__ import annotations
 
-import torch
-
 from distill.experts.files import ExpertDir
-from distill.experts.policy import ExpertPolicy
+from distill.experts.policy import ExpertPolicy, sb3_name
 from foundation.sb3 import PpoSettings, build_ppo, save_sb3
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
-
-_SB3_NAMES = {
-    "policy_net": "mlp_extractor.policy_net",
-    "value_net": "mlp_extractor.value_net",
-    "action": "action_net",
-    "value": "value_net",
-}
-"""Our module names -> stable-baselines3's ``MultiInputPolicy`` names."""
 
 
 def write_sb3_files(policy: ExpertPolicy, expert: ExpertDir, tracking: TrackingConfig) -> None:
@@ -64,12 +54,9 @@ def write_sb3_files(policy: ExpertPolicy, expert: ExpertDir, tracking: TrackingC
         device="cpu",
     )
     model = build_ppo(venv, settings)
-    weights = model.policy.state_dict()
+    weights = model.policy.state_dict()  # log_std is already log(action_std): build_ppo's initial_std
     for name, value in policy.state_dict().items():
-        prefix, rest = name.split(".", 1)
-        weights[f"{_SB3_NAMES[prefix]}.{rest}"] = value.detach().clone()
+        weights[sb3_name(name)] = value.detach().clone()
     model.policy.load_state_dict(weights)
-    with torch.no_grad():
-        model.policy.log_std.fill_(float(torch.log(torch.tensor(spec.action_std))))
     save_sb3(model, venv, expert.best_model, expert.vecnormalize)
     venv.close()

@@ -28,7 +28,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNorm
 from tqdm.auto import tqdm
 
 from distill.experts.config import ExpertConfig, PiecewiseLearningRate, expert_config_from_json
-from distill.experts.evaluation import EvaluationConfig, evaluate_policy
+from distill.experts.evaluation import EvaluationConfig, evaluate_policy, training_task
 from distill.experts.fanout import Job
 from distill.experts.files import ExpertDir, expert_dir_for, write_clip_info
 from distill.experts.policy import policy_from_sb3
@@ -43,7 +43,6 @@ from tasks.clips.sources import resolve_clip_file
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 from tasks.walker import build_walker
 
-EXPERT_OBSERVABLES = "expert"
 _SB3_SAVE_EXCLUDE = ["learning_rate", "lr_schedule"]  # our schedule class stays out of SB3's pickles
 
 
@@ -77,19 +76,6 @@ def _make_env(tracking: TrackingConfig, seed: int) -> ClipTrackingEnv:
     env = ClipTrackingEnv(tracking)
     env.reset(seed=seed)
     return env
-
-
-def _tracking_config(snippet: str, clips: str, config: ExpertConfig) -> TrackingConfig:
-    return TrackingConfig(
-        snippets=(snippet,),
-        clips=clips,
-        ref_steps=(0,),
-        observables=EXPERT_OBSERVABLES,
-        init="random",
-        min_steps=config.train_min_steps,
-        termination_threshold=config.termination_threshold,
-        residual_actions=config.residual_actions,
-    )
 
 
 def _training_fields(config: ExpertConfig) -> dict:
@@ -294,7 +280,7 @@ def train_expert(
     write_json(expert.config, asdict(config))
     if config.torch_threads > 0:
         torch.set_num_threads(config.torch_threads)
-    vec_env = _vec_env(_tracking_config(name, clip_file, config), config)
+    vec_env = _vec_env(training_task((name,), clip_file, config), config)
     model, state = _resume_or_build(expert, vec_env, resume_state, config)
 
     trainer = _Trainer(name, expert, clip_file, config, progress)

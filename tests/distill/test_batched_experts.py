@@ -14,6 +14,7 @@ import torch
 from distill.experts import batched_training
 from distill.experts.batched_training import RunningMoments, train_experts_batched
 from distill.experts.config import BatchedExpertConfig
+from distill.experts.evaluation import training_task
 from distill.experts.files import ExpertDir, expert_dir_for
 from distill.experts.policy import ExpertPolicy
 from distill.experts.sb3_import import convert_sb3_expert
@@ -65,7 +66,7 @@ def test_stable_baselines_files_hold_the_same_policy_as_ours(trained, clip_libra
     expert = expert_dir_for(out, SNIPPETS[0])
     ours = ExpertPolicy.load(expert)
     converted = convert_sb3_expert(ExpertDir(expert.root))  # reads best_model.zip + vecnormalize.pkl, runs nothing
-    env = ClipTrackingEnv(batched_training.expert_tracking_config((SNIPPETS[0],), str(clip_library), TINY))
+    env = ClipTrackingEnv(training_task((SNIPPETS[0],), str(clip_library), TINY))
     rows = []
     observation, _ = env.reset(seed=1)
     for _ in range(5):

@@ -208,3 +208,11 @@ def test_cuda_without_a_gpu_and_a_missing_extra_say_what_to_do(monkeypatch):
     monkeypatch.setattr(warp_backend.importlib, "import_module", missing)
     with pytest.raises(WarpUnavailableError, match=r"\.\[gpu\]"):
         warp_backend.require_warp()
+
+
+def test_residual_actions_add_the_cpu_envs_playback_targets(env, config):
+    cpu = ClipTrackingEnv(config)
+    for index, reference in enumerate(cpu.references):
+        for frame in (0, 7, reference.num_frames - 2, reference.num_frames - 1):  # the last frame holds itself
+            cpu._reference, cpu._time_step = reference, frame
+            np.testing.assert_allclose(env.bank.playback[index, frame].numpy(), cpu.reference_actuation(), atol=1e-6)

@@ -85,13 +85,9 @@ class ReferenceBank:
         self.center_of_mass = stacked(lambda r: r.center_of_mass)
         self.qpos = stacked(lambda r: in_data_order(r.qpos, qpos_order, nq))
         self.qvel = stacked(lambda r: in_data_order(r.qvel, qvel_order, nv))
-        self.playback = stacked(lambda r: np.clip(walker.pose_to_actuation(np.roll(r.joints, -1, axis=0)), -1, 1))
-        # np.roll wraps the last frame onto the first; the CPU env holds the last frame instead.
-        for index, reference in enumerate(references):
-            last = reference.num_frames - 1
-            self.playback[index, last:] = torch.as_tensor(
-                np.clip(walker.pose_to_actuation(reference.joints[last]), -1, 1), dtype=torch.float32
-            )
+        self.playback = stacked(
+            lambda r: np.clip(walker.pose_to_actuation(r.joints[_next_frames(r.num_frames)]), -1, 1)
+        )
 
         def integers(values) -> torch.Tensor:
             return torch.as_tensor(np.asarray(values, dtype=np.int64), device=self.device)
@@ -110,3 +106,8 @@ def _pad(values: np.ndarray, frames: int) -> np.ndarray:
     if missing <= 0:
         return values
     return np.concatenate([values, np.repeat(values[-1:], missing, axis=0)])
+
+
+def _next_frames(count: int) -> np.ndarray:
+    """Each frame's successor, the last frame its own (as the CPU env's playback controller holds it)."""
+    return np.minimum(np.arange(count) + 1, count - 1)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import torch
 
 from tasks.tracking.batched.bank import ReferenceBank
-from tasks.tracking.batched.physics import _TorchViews
+from tasks.tracking.batched.physics import TorchViews
 from tasks.tracking.batched.quaternions import bounded_quat_dist, quat_conj, quat_diff, quat_mul, quat_to_axisangle
 from tasks.tracking.rewards import POSE_TERMS
 from tasks.walker import CONTROL_TIMESTEP, TORQUE_SENSOR_SCALE, TOUCH_THRESHOLD, WalkerModel
@@ -63,7 +63,7 @@ class BatchedWalkerState:
     appendages: torch.Tensor
 
     @classmethod
-    def read(cls, view: _TorchViews, index: WalkerIndices) -> BatchedWalkerState:
+    def read(cls, view: TorchViews, index: WalkerIndices) -> BatchedWalkerState:
         """Copies the features out of the physics views."""
         root_xmat = view.xmat[:, index.root].clone()
         relative = view.xpos[:, index.appendage_bodies] - view.xpos[:, index.root, None]
@@ -88,13 +88,13 @@ class BatchedWalkerState:
         return BatchedWalkerState(**fields)
 
 
-def proprioception_readers(index: WalkerIndices) -> dict[str, Callable[[_TorchViews], torch.Tensor]]:
+def proprioception_readers(index: WalkerIndices) -> dict[str, Callable[[TorchViews], torch.Tensor]]:
     """One function per walker observable, each giving ``(N, size)``, as dm_control computes them."""
 
-    def sensors(rows: torch.Tensor) -> Callable[[_TorchViews], torch.Tensor]:
+    def sensors(rows: torch.Tensor) -> Callable[[TorchViews], torch.Tensor]:
         return lambda v: v.sensordata[:, rows]
 
-    def appendages(v: _TorchViews) -> torch.Tensor:
+    def appendages(v: TorchViews) -> torch.Tensor:
         relative = v.xpos[:, index.appendage_bodies] - v.xpos[:, index.root, None]
         return (relative @ v.xmat[:, index.root]).flatten(1)
 

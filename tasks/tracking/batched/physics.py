@@ -81,7 +81,7 @@ class WarpPhysics:
         self.wp.synchronize_device(warp_device)  # the uploads ran on Warp's stream; torch reads next
         self.model.opt.warn_overflow = 0  # overflows are checked and reported by check_capacity
         self._flags = int(self.model.opt.disableflags)
-        self.view = _TorchViews(self.wp, self.data)
+        self.view = TorchViews(self.wp, self.data)
         self._graph = None
         # Warp runs on torch's current CUDA stream, so torch's writes (controls, resets) and
         # Warp's kernels (and its captured graph) are ordered without extra synchronisation.
@@ -196,7 +196,7 @@ class WarpPhysics:
             )
 
 
-class _TorchViews:
+class TorchViews:
     """Zero-copy torch tensors over the Warp data arrays the environments read and write."""
 
     def __init__(self, wp, data) -> None:
