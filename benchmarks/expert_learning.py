@@ -1,15 +1,22 @@
-"""Does an expert learn? Absolute vs residual actions, same budget and seed.
+r"""Which settings make a snippet expert learn? A sweep of one-change variants against a baseline.
 
-Trains one snippet expert per action mode with the seed's settings (Table 1,
-B.1.2) except the budget and the evaluation cadence, which fit a small
-machine; evaluates with the seed's protocol (random starts excluding the last
-30 frames, action noise 0.1) and plots normalised episode length and reward
-against environment steps. Prints the steps each mode needed to reach a
-normalised episode length of 0.5 and 0.9.
+Every variant is the base settings plus the changes named after its colon;
+each (variant, seed, snippet) trains one expert with
+:func:`distill.experts.training.train_expert` in a process of its own (in-process
+environments, one torch thread), ``--jobs`` at a time. Evaluations use the
+seed's protocol (random starts excluding the last 30 frames, action noise 0.1)
+every ``--eval-every`` steps. The tool prints, per variant, the steps and wall
+time to a normalised episode length of 0.5 and 0.9, and plots the curves
+against environment steps and wall time (mean over seeds and snippets, band:
+min to max). Runs resume: rerunning the same command continues unfinished
+experts and skips finished ones, and ``--replot`` redraws from what is on disk
+(also while a sweep is still running).
 
 Usage::
 
-    python benchmarks/expert_learning.py --steps 300000 --out runs/expert_learning
+    python benchmarks/expert_learning.py --out runs/sweep --snippets SYN_walk_slow-0-182 --steps 300000 \\
+        --base hidden_layers=256,256 learning_rates=3e-4 steps_per_update=4096 epochs=5 n_envs=2 \\
+        --variant baseline --variant residual:residual_actions=true --variant gamma:gamma=0.99
 """
 
 from __future__ import annotations
@@ -17,113 +24,220 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import typing
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+import numpy as np
 
 from distill.experts.config import ExpertConfig
-from distill.experts.files import ExpertDir
+from distill.experts.fanout import Job, run_jobs
+from distill.experts.files import expert_dir_for
 from distill.experts.training import train_expert
 from foundation.atomic import atomic_path, write_json
 
+THRESHOLDS = (0.5, 0.9)
 
-def steps_to(evaluations: list[dict], threshold: float) -> int | None:
-    """First evaluated step whose normalised episode length reaches ``threshold``."""
-    for record in evaluations:
+
+def parse_setting(text: str) -> tuple[str, typing.Any]:
+    """``field=value`` of :class:`ExpertConfig`, the value converted to the field's type."""
+    if "=" not in text:
+        raise SystemExit(f"setting {text!r}: expected FIELD=VALUE")
+    name, raw = text.split("=", 1)
+    hints = typing.get_type_hints(ExpertConfig)
+    if name not in hints:
+        known = ", ".join(f.name for f in dataclasses.fields(ExpertConfig))
+        raise SystemExit(f"setting {text!r}: ExpertConfig has no field {name!r} (fields: {known})")
+    kind = hints[name]
+    if kind is bool:
+        if raw.lower() not in ("true", "false"):
+            raise SystemExit(f"setting {text!r}: expected true or false")
+        return name, raw.lower() == "true"
+    if typing.get_origin(kind) is tuple:
+        element = typing.get_args(kind)[0]
+        return name, tuple(element(v) for v in raw.split(","))
+    return name, kind(raw)
+
+
+def parse_variant(text: str) -> tuple[str, dict[str, typing.Any]]:
+    """``name`` or ``name:field=value,field=value`` (tuples inside use ``;``: ``hidden_layers=512;512``)."""
+    name, _, changes = text.partition(":")
+    settings = dict(parse_setting(c.replace(";", ",")) for c in changes.split(",") if c) if changes else {}
+    return name, settings
+
+
+def run_dir(out: Path, variant: str, seed: int) -> Path:
+    """Folder of one variant and seed (one expert directory per snippet inside)."""
+    return out / variant / f"seed{seed}"
+
+
+def curves_on_disk(
+    out: Path, variants: list[str], seeds: list[int], snippets: list[str]
+) -> dict[str, list[list[dict]]]:
+    """Evaluation records of every run found, per variant (one list per seed and snippet)."""
+    curves: dict[str, list[list[dict]]] = {}
+    for variant in variants:
+        for seed in seeds:
+            for snippet in snippets:
+                path = expert_dir_for(run_dir(out, variant, seed), snippet).evaluations
+                if path.is_file():
+                    curves.setdefault(variant, []).append(json.loads(path.read_text()))
+    return curves
+
+
+def first_reaching(records: list[dict], threshold: float, key: str) -> float | None:
+    """``key`` (steps or wall seconds) of the first evaluation with normalised length >= ``threshold``."""
+    for record in records:
         if record["normalized_length"] >= threshold:
-            return record["steps"]
+            return record.get(key)
     return None
 
 
-def plot(curves: dict[str, list[dict]], snippet: str, budget: int, rates: list[float], path: Path) -> None:
-    """Normalised episode length and reward against environment steps, one line per mode."""
-    figure, axes = plt.subplots(1, 2, figsize=(10, 4))
-    for mode, records in curves.items():
-        steps = [r["steps"] for r in records]
-        axes[0].plot(steps, [r["normalized_length"] for r in records], marker="o", label=mode)
-        axes[1].plot(steps, [r["normalized_reward"] for r in records], marker="o", label=mode)
-    for axis, title in zip(axes, ("normalised episode length", "normalised episode reward"), strict=True):
-        axis.set_xlabel("environment steps")
-        axis.set_title(title)
+def summarise(curves: dict[str, list[list[dict]]]) -> dict[str, dict]:
+    """Per variant: runs, last step, best and last length/reward (means), steps and seconds to each threshold."""
+    summary = {}
+    for variant, runs in curves.items():
+        row: dict[str, typing.Any] = {
+            "runs": len(runs),
+            "last_step": min(r[-1]["steps"] for r in runs),
+            "best_length": float(np.mean([max(e["normalized_length"] for e in r) for r in runs])),
+            "last_length": float(np.mean([r[-1]["normalized_length"] for r in runs])),
+            "last_reward": float(np.mean([r[-1]["normalized_reward"] for r in runs])),
+        }
+        seconds = [r[-1].get("wall_seconds") for r in runs]
+        if all(s is not None for s in seconds):
+            row["steps_per_second"] = float(np.mean([r[-1]["steps"] / max(r[-1]["wall_seconds"], 1e-9) for r in runs]))
+        for threshold in THRESHOLDS:
+            steps = [first_reaching(r, threshold, "steps") for r in runs]
+            row[f"steps_to_{threshold}"] = None if None in steps else float(np.mean(steps))
+            wall = [first_reaching(r, threshold, "wall_seconds") for r in runs]
+            row[f"seconds_to_{threshold}"] = None if None in wall else float(np.mean(wall))
+        summary[variant] = row
+    return summary
+
+
+def _band(runs: list[list[dict]], x_key: str, y_key: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Mean, min and max of ``y_key`` over runs at the evaluations all runs have reached."""
+    count = min(len(r) for r in runs)
+    xs = np.mean([[e.get(x_key, np.nan) for e in r[:count]] for r in runs], axis=0)
+    ys = np.array([[e[y_key] for e in r[:count]] for r in runs])
+    return xs, ys.mean(axis=0), ys.min(axis=0), ys.max(axis=0)
+
+
+def plot(curves: dict[str, list[list[dict]]], title: str, path: Path) -> None:
+    """Normalised length against steps and wall time, normalised reward against steps."""
+    figure, axes = plt.subplots(1, 3, figsize=(15, 4.2))
+    panels = (
+        ("steps", "normalized_length", "environment steps", "normalised episode length"),
+        ("wall_seconds", "normalized_length", "wall time (s)", "normalised episode length"),
+        ("steps", "normalized_reward", "environment steps", "normalised episode reward"),
+    )
+    for axis, (x_key, y_key, x_label, y_label) in zip(axes, panels, strict=True):
+        for variant, runs in curves.items():
+            if x_key == "wall_seconds" and any("wall_seconds" not in e for r in runs for e in r):
+                continue
+            xs, mean, low, high = _band(runs, x_key, y_key)
+            (line,) = axis.plot(xs, mean, marker=".", label=f"{variant} ({len(runs)})")
+            if len(runs) > 1:
+                axis.fill_between(xs, low, high, color=line.get_color(), alpha=0.15)
+        if y_key == "normalized_length":
+            axis.axhline(0.9, color="grey", linestyle=":", linewidth=1)
+        axis.set_xlabel(x_label)
+        axis.set_ylabel(y_label)
         axis.set_ylim(0, 1)
         axis.grid(alpha=0.3)
-        axis.legend()
-    seed_rates = list(ExpertConfig().learning_rates)
-    label = (
-        "seed settings" if rates == seed_rates else "seed settings, step size " + " / ".join(f"{r:g}" for r in rates)
-    )
-    figure.suptitle(f"{snippet}: PPO expert, {label}, {budget:,} steps")
+    axes[0].legend(fontsize=8)
+    figure.suptitle(title)
     figure.tight_layout()
     with atomic_path(path) as temporary:
-        figure.savefig(temporary, format="png", dpi=120)
+        figure.savefig(temporary, format="png", dpi=110)
+    plt.close(figure)
+
+
+def _fmt(value: float | None, unit: str = "") -> str:
+    if value is None:
+        return "-"
+    return f"{value / 1000:.0f}k" if unit == "steps" else f"{value / 60:.1f}m"
+
+
+def print_table(summary: dict[str, dict]) -> None:
+    """One line per variant: what it reached and how fast."""
+    print(
+        f"\n{'variant':<16}{'runs':>5}{'at step':>9}{'best len':>9}{'last len':>9}{'last rew':>9}"
+        f"{'steps/s':>8}{'to 0.5':>8}{'to 0.9':>8}{'t 0.5':>7}{'t 0.9':>7}"
+    )
+    for variant, row in summary.items():
+        print(
+            f"{variant:<16}{row['runs']:>5}{row['last_step'] / 1000:>8.0f}k{row['best_length']:>9.3f}"
+            f"{row['last_length']:>9.3f}{row['last_reward']:>9.3f}{row.get('steps_per_second', 0):>8.0f}"
+            f"{_fmt(row['steps_to_0.5'], 'steps'):>8}{_fmt(row['steps_to_0.9'], 'steps'):>8}"
+            f"{_fmt(row['seconds_to_0.5']):>7}{_fmt(row['seconds_to_0.9']):>7}"
+        )
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--snippet", default="SYN_wave-0-196")
-    parser.add_argument("--steps", type=int, default=300_000, help="environment steps per action mode")
+    parser.add_argument("--out", type=Path, required=True, help="sweep folder (VARIANT/seedN/SNIPPET/ inside)")
+    parser.add_argument("--snippets", nargs="+", default=["SYN_walk_slow-0-182"])
+    parser.add_argument("--steps", type=int, default=300_000, help="environment steps per run")
     parser.add_argument("--eval-every", type=int, default=25_000)
     parser.add_argument("--eval-episodes", type=int, default=50)
-    parser.add_argument("--modes", nargs="+", default=["absolute", "residual"], choices=["absolute", "residual"])
-    parser.add_argument("--learning-rates", type=float, nargs="+", default=None, help="override the seed's")
-    parser.add_argument("--n-envs", type=int, default=0, help="0: one per core")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", default="runs/expert_learning")
-    parser.add_argument("--replot", action="store_true", help="only redraw the plot from OUT/summary.json")
+    parser.add_argument("--base", nargs="*", default=[], metavar="FIELD=VALUE", help="settings of every variant")
+    parser.add_argument(
+        "--variant", action="append", default=None, metavar="NAME[:FIELD=VALUE,...]", help="repeat per variant"
+    )
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0])
+    parser.add_argument("--jobs", type=int, default=0, help="runs at a time (0: one per core)")
+    parser.add_argument("--title", default=None)
+    parser.add_argument("--replot", action="store_true", help="only redraw from what OUT holds")
     args = parser.parse_args()
 
-    out = Path(args.out)
-    rates = list(args.learning_rates or ExpertConfig().learning_rates)
-    if args.replot:
-        saved = json.loads((out / "summary.json").read_text())
-        rates = saved.get("learning_rates", rates)
-        plot(saved["curves"], saved["snippet"], saved["budget"], rates, out / "expert_learning.png")
-        return
-    curves: dict[str, list[dict]] = {}
-    for mode in args.modes:
-        config = ExpertConfig(
-            total_steps=args.steps,
-            eval_every=args.eval_every,
-            eval_episodes=args.eval_episodes,
-            checkpoint_every=args.eval_every,
-            residual_actions=mode == "residual",
-            n_envs=args.n_envs,
-            seed=args.seed,
-        )
-        if args.learning_rates:
-            config = dataclasses.replace(config, learning_rates=tuple(args.learning_rates))
-        result = train_expert(args.snippet, out / mode, config)
-        evaluations = json.loads(ExpertDir(Path(result.directory)).evaluations.read_text())
-        curves[mode] = evaluations
-
-    summary = {
-        mode: {
-            "steps_to_length_0.5": steps_to(records, 0.5),
-            "steps_to_length_0.9": steps_to(records, 0.9),
-            "first": records[0],
-            "last": records[-1],
-            "best_length": max(r["normalized_length"] for r in records),
-        }
-        for mode, records in curves.items()
-    }
-    write_json(
-        out / "summary.json", {"snippet": args.snippet, "budget": args.steps, "modes": summary, "curves": curves}
+    variants = dict(parse_variant(v) for v in (args.variant or ["baseline"]))
+    base = dict(parse_setting(s) for s in args.base)
+    base.update(
+        total_steps=args.steps,
+        eval_every=args.eval_every,
+        eval_episodes=args.eval_episodes,
+        checkpoint_every=args.eval_every,
+        subprocess_envs=False,
+        torch_threads=1,
     )
-
-    plot(curves, args.snippet, args.steps, rates, out / "expert_learning.png")
-
-    print(f"\n{'mode':<10}{'to 0.5':>10}{'to 0.9':>10}{'first len':>11}{'last len':>10}{'last rew':>10}")
-    for mode, row in summary.items():
-        to_half, to_most = row["steps_to_length_0.5"], row["steps_to_length_0.9"]
-        print(
-            f"{mode:<10}{'-' if to_half is None else to_half:>10}{'-' if to_most is None else to_most:>10}"
-            f"{row['first']['normalized_length']:>11.3f}{row['last']['normalized_length']:>10.3f}"
-            f"{row['last']['normalized_reward']:>10.3f}"
+    if not args.replot:
+        jobs = []
+        for name, changes in variants.items():
+            for seed in args.seeds:
+                config = dataclasses.replace(ExpertConfig(), **{**base, **changes, "seed": seed})
+                config.validate()
+                for snippet in args.snippets:
+                    kwargs = {
+                        "snippet": snippet,
+                        "out": run_dir(args.out, name, seed),
+                        "config": config,
+                        "progress": False,
+                    }
+                    done = expert_dir_for(kwargs["out"], snippet).is_done()
+                    jobs.append(Job(f"{name}/seed{seed}/{snippet}", train_expert, kwargs, done))
+        write_json(
+            args.out / "sweep.json",
+            {"base": base, "variants": variants, "seeds": args.seeds, "snippets": args.snippets},
         )
-    print(f"plot: {out / 'expert_learning.png'}")
+        reports = run_jobs(jobs, workers=args.jobs, max_attempts=1)
+        for report in reports:
+            if report.status == "failed":
+                print(f"{report.name} failed:\n{report.error}")
+
+    curves = curves_on_disk(args.out, list(variants), args.seeds, args.snippets)
+    if not curves:
+        raise SystemExit(f"no evaluations under {args.out} yet")
+    summary = summarise(curves)
+    write_json(args.out / "summary.json", {"summary": summary, "curves": curves})
+    title = args.title or f"{', '.join(args.snippets)}: {args.steps:,} steps per run"
+    plot(curves, title, args.out / "expert_learning.png")
+    print_table(summary)
+    print(f"\nplot: {args.out / 'expert_learning.png'}")
 
 
 if __name__ == "__main__":

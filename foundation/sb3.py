@@ -140,3 +140,24 @@ def load_ppo(model_path: Path, normaliser_path: Path, venv: Any, device: str, **
     normaliser = VecNormalize.load(str(normaliser_path), venv)
     normaliser.training = True
     return PPO.load(str(model_path), env=normaliser, device=device, **custom)
+
+
+def resumable_logger(folder: str | Path, formats: list[str], resumed: bool) -> Any:
+    """SB3's logger writing ``folder/progress.csv`` (and the other ``formats``); a resumed run keeps the rows there.
+
+    SB3 truncates ``progress.csv`` when it opens it, so a resumed run would lose the
+    curve of the steps before its checkpoint; with ``resumed`` this logger starts from
+    those rows (a new run starts an empty file, as SB3 does).
+    """
+    from stable_baselines3.common.logger import CSVOutputFormat, configure
+
+    progress = Path(folder) / "progress.csv"
+    earlier = progress.read_text() if resumed and progress.is_file() else ""
+    logger = configure(str(folder), formats)
+    if earlier.strip():
+        for output in logger.output_formats:
+            if isinstance(output, CSVOutputFormat):
+                output.file.write(earlier if earlier.endswith("\n") else earlier + "\n")
+                output.file.flush()
+                output.keys = earlier.splitlines()[0].split(output.separator)
+    return logger

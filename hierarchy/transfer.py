@@ -26,7 +26,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.logger import configure
 from tqdm.auto import tqdm
 
 from foundation.atomic import write_json
@@ -34,7 +33,7 @@ from foundation.fingerprints import file_sha256
 from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
 from foundation.provenance import provenance
 from foundation.resume import check_same_settings, settings_record
-from foundation.sb3 import PpoSettings, build_ppo, load_ppo, save_sb3
+from foundation.sb3 import PpoSettings, build_ppo, load_ppo, resumable_logger, save_sb3
 from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
@@ -183,7 +182,7 @@ def train_transfer(
 
     venv = _vec_env(source, frozen, config)
     model = _resume_or_build(checkpoint, venv, config, with_decoder=frozen is not None, out=out)
-    model.set_logger(configure(str(out), ["csv", "tensorboard"]))
+    model.set_logger(resumable_logger(out, ["csv", "tensorboard"], resumed=model.num_timesteps > 0))
 
     remaining = config.total_steps - model.num_timesteps
     if remaining > 0:

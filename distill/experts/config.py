@@ -24,11 +24,21 @@ class ExpertConfig:
         gae_lambda: GAE parameter.
         gamma: Discount factor.
         max_grad_norm: Gradient norm clipping value.
-        learning_rates: Adam step sizes for the first, second and last third of the budget.
+        learning_rates: Adam step sizes for the first, second and last third of the budget
+            (``schedule`` ``piecewise``); with ``adaptive``, the first is the start value.
+        schedule: ``piecewise`` (the seed's: ``learning_rates`` over equal parts of the budget) or
+            ``adaptive`` (after every update, divide the step size by 1.5 when the update's KL divergence
+            exceeded twice ``desired_kl``, multiply it by 1.5 when it stayed below half of it).
+        desired_kl: KL divergence per update the ``adaptive`` schedule aims at.
         hidden_layers: Hidden layer sizes of the policy and of the value network.
-        action_std: Fixed standard deviation of the Gaussian policy (the experts' action noise).
+        action_std: Standard deviation of the Gaussian policy (the experts' action noise); fixed,
+            or the start value when ``learn_action_std`` is set.
+        learn_action_std: Learn the policy's standard deviation (state-independent, per joint) from
+            ``action_std`` on, instead of keeping it fixed (the seed fixes it).
         residual_actions: Policy outputs offsets from the reference's next pose instead of
             absolute joint targets (not in the seed; see the README for why it exists).
+        reference_observations: Also observe the reference's next five frames relative to the walker
+            (the multi-clip encoder's reference observables), not only ``time_in_clip`` (not in the seed).
         termination_threshold: Tracking error that ends an episode.
         train_min_steps: Random training starts exclude the last ``train_min_steps + 1`` frames.
         eval_every: Evaluate every this many environment steps.
@@ -57,9 +67,13 @@ class ExpertConfig:
     gamma: float = 0.95
     max_grad_norm: float = 1.0
     learning_rates: tuple[float, ...] = (1e-5, 6e-6, 3e-6)
+    schedule: str = "piecewise"
+    desired_kl: float = 0.01
     hidden_layers: tuple[int, ...] = (1024, 1024, 1024)
     action_std: float = 0.1
+    learn_action_std: bool = False
     residual_actions: bool = False
+    reference_observations: bool = False
     termination_threshold: float = 0.3
     train_min_steps: int = 9
     eval_every: int = 1_000_000
@@ -97,10 +111,39 @@ class ExpertConfig:
             raise ValueError("minibatch_size cannot exceed steps_per_update")
         if not self.learning_rates or min(self.learning_rates) <= 0:
             raise ValueError("learning_rates must be positive")
+        if self.schedule not in ("piecewise", "adaptive"):
+            raise ValueError(f"schedule must be 'piecewise' or 'adaptive', got {self.schedule!r}")
+        if self.desired_kl <= 0:
+            raise ValueError("desired_kl must be positive")
         if self.action_std <= 0:
             raise ValueError("action_std must be positive")
         if self.eval_every < 1 or self.eval_episodes < 1 or self.checkpoint_every < 1:
             raise ValueError("eval_every, eval_episodes and checkpoint_every must be positive")
+
+
+FAST_PROFILE_CHANGES: dict[str, Any] = {
+    "hidden_layers": (256, 256),
+    "steps_per_update": 4096,
+    "epochs": 5,
+    "learning_rates": (3e-4,),
+    "n_envs": 8,
+    "subprocess_envs": False,
+    "torch_threads": 1,
+    "eval_every": 50_000,
+    "eval_episodes": 100,
+    "checkpoint_every": 50_000,
+}
+"""What ``--profile fast`` changes from the seed's settings: the values measured to learn fastest on a small CPU
+machine (``benchmarks/expert_learning.py``; the README's expert section has the curves and their commands)."""
+
+
+def expert_profiles() -> dict[str, ExpertConfig]:
+    """Named starting points for expert training: ``seed`` (Table 1, B.1.2) and ``fast``.
+
+    ``fast`` is the seed's settings with :data:`FAST_PROFILE_CHANGES`; flags given beside
+    ``--profile`` change either further.
+    """
+    return {"seed": ExpertConfig(), "fast": ExpertConfig(**FAST_PROFILE_CHANGES)}
 
 
 @dataclass(frozen=True)
@@ -238,3 +281,34 @@ class PiecewiseLearningRate:
         done = min(max(1.0 - progress_remaining, 0.0), 1.0)
         part = min(int(done * len(self.rates)), len(self.rates) - 1)
         return self.rates[part]
+
+
+class KlAdaptiveLearningRate:
+    """A step size that follows the KL divergence of the updates (the ``adaptive`` schedule).
+
+    Called like an SB3 schedule (the remaining progress is ignored); :meth:`update`
+    after each PPO update divides the step size by ``factor`` when the update's KL
+    divergence exceeded twice ``desired_kl`` and multiplies it by ``factor`` when it
+    stayed below half of it, within ``[low, high]``.
+    """
+
+    def __init__(
+        self, start: float, desired_kl: float, factor: float = 1.5, low: float = 1e-6, high: float = 1e-2
+    ) -> None:
+        self.value = float(start)
+        self.desired_kl = float(desired_kl)
+        self.factor = float(factor)
+        self.low = float(low)
+        self.high = float(high)
+
+    def __call__(self, progress_remaining: float) -> float:
+        """The current step size."""
+        return self.value
+
+    def update(self, kl: float) -> float:
+        """Adapts to the last update's KL divergence; returns the new step size."""
+        if kl > 2.0 * self.desired_kl:
+            self.value = max(self.value / self.factor, self.low)
+        elif kl < 0.5 * self.desired_kl:
+            self.value = min(self.value * self.factor, self.high)
+        return self.value

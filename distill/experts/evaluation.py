@@ -18,6 +18,7 @@ from distill.experts.config import (  # EvaluationConfig: defined there (light),
 )
 from distill.experts.policy import ExpertPolicy
 from foundation.lockstep import Lockstep
+from tasks.observable_sets import OBSERVABLE_SETS
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 from tasks.walker import WalkerModel, build_walker
 
@@ -62,15 +63,35 @@ class EvaluationResult:
         )
 
 
+EXPERT_REFERENCE_OBSERVABLES = ("walker/reference_rel_bodies_pos_local", "walker/reference_rel_bodies_quats")
+"""What an expert trained with ``reference_observations`` adds to the seed's observables: the multi-clip
+encoder's view of the reference (bodies' positions and orientations relative to the walker's)."""
+
+REFERENCE_LOOKAHEAD = (1, 2, 3, 4, 5)
+"""Frames ahead an expert that observes the reference sees (the multi-clip policy's ``ref_steps``)."""
+
+
+def expert_ref_steps(keys: tuple[str, ...] | list[str]) -> tuple[int, ...]:
+    """``ref_steps`` of an expert observing ``keys``: 1..5 if it observes the reference, else 0 (the seed's)."""
+    return REFERENCE_LOOKAHEAD if any(k.startswith("walker/reference_") for k in keys) else (0,)
+
+
 def training_task(
     snippets: tuple[str, ...], clips: str | None, config: ExpertConfig | BatchedExpertConfig
 ) -> TrackingConfig:
-    """The task experts train on (either engine): expert observables, ``ref_steps`` 0, random starts."""
+    """The task experts train on (either engine): expert observables, ``ref_steps`` 0, random starts.
+
+    With ``reference_observations`` the experts also observe the reference's next five frames
+    (:data:`EXPERT_REFERENCE_OBSERVABLES`, ``ref_steps`` 1..5).
+    """
+    keys = OBSERVABLE_SETS["expert"]
+    if getattr(config, "reference_observations", False):
+        keys = (*keys, *EXPERT_REFERENCE_OBSERVABLES)
     return TrackingConfig(
         snippets=snippets,
         clips=clips,
-        ref_steps=(0,),
-        observables="expert",
+        ref_steps=expert_ref_steps(keys),
+        observables=keys,
         init="random",
         min_steps=config.train_min_steps,
         termination_threshold=config.termination_threshold,
@@ -85,7 +106,7 @@ def evaluation_task(
     return TrackingConfig(
         snippets=snippets,
         clips=clips,
-        ref_steps=(0,),
+        ref_steps=expert_ref_steps(policy.keys),
         observables=tuple(policy.keys),
         init=config.init,
         min_steps=config.min_steps,

@@ -23,11 +23,15 @@ import numpy as np
 import torch
 from stable_baselines3 import PPO
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.logger import configure
 from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 from tqdm.auto import tqdm
 
-from distill.experts.config import ExpertConfig, PiecewiseLearningRate, expert_config_from_json
+from distill.experts.config import (
+    ExpertConfig,
+    KlAdaptiveLearningRate,
+    PiecewiseLearningRate,
+    expert_config_from_json,
+)
 from distill.experts.evaluation import EvaluationConfig, evaluate_policy, training_task
 from distill.experts.fanout import Job
 from distill.experts.files import ExpertDir, expert_dir_for, write_clip_info
@@ -36,7 +40,7 @@ from foundation.atomic import write_json
 from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
 from foundation.provenance import provenance
 from foundation.resume import SettingsMismatchError, check_same_settings
-from foundation.sb3 import PpoSettings, build_ppo, load_ppo, save_sb3
+from foundation.sb3 import PpoSettings, build_ppo, load_ppo, resumable_logger, save_sb3
 from tasks.clips.format import list_clips
 from tasks.clips.snippets import SnippetId, parse_snippet_id
 from tasks.clips.sources import resolve_clip_file
@@ -126,6 +130,12 @@ class _ExpertCallback(BaseCallback):
             disable=not self.trainer.progress,
         )
 
+    def _on_rollout_start(self) -> None:
+        schedule = self.model.learning_rate  # as given to PPO (lr_schedule wraps it)
+        kl = self.model.logger.name_to_value.get("train/approx_kl")  # the last update's, until the next dump
+        if isinstance(schedule, KlAdaptiveLearningRate) and kl:
+            self.state["learning_rate"] = schedule.update(float(kl))
+
     def _on_step(self) -> bool:
         for info in self.locals["infos"]:
             if "normalized_episode_length" in info:
@@ -174,15 +184,23 @@ class _Trainer:
         self.config = config
         self.progress = progress
         self.walker = build_walker()
+        self.started = time.perf_counter()
+
+    def wall_seconds(self, state: dict) -> float:
+        """Training wall time so far, across resumed runs (evaluations and checkpoints included)."""
+        return state.get("wall_seconds_before", 0.0) + time.perf_counter() - self.started
 
     def _policy(self, model: PPO, venv: VecNormalize, steps: int):
+        std = self.config.action_std
+        if self.config.learn_action_std:
+            std = float(model.policy.log_std.detach().exp().mean())
         return policy_from_sb3(
             model,
             venv,
             {
                 "snippet": self.snippet,
                 "residual_actions": self.config.residual_actions,
-                "action_std": self.config.action_std,
+                "action_std": std,
                 "provenance": provenance(trained_steps=int(steps), clips=str(self.clips)),
             },
         )
@@ -213,6 +231,7 @@ class _Trainer:
             "normalized_length": evaluation.normalized_length,
             "episode_return": evaluation.episode_return,
             "episode_length": evaluation.episode_length,
+            "wall_seconds": round(self.wall_seconds(state), 1),
         }
         state["evaluations"].append(record)
         write_json(self.expert.evaluations, state["evaluations"])
@@ -234,6 +253,7 @@ class _Trainer:
         assert venv is not None
         save_sb3(model, venv, expert.checkpoint_model, expert.checkpoint_normaliser, _SB3_SAVE_EXCLUDE)
         saved = {k: v for k, v in state.items() if k != "recent"}
+        saved["wall_seconds_before"] = self.wall_seconds(state)
         write_json(expert.checkpoint_state, {**saved, "steps": int(model.num_timesteps)})
 
 
@@ -330,10 +350,18 @@ def _vec_env(tracking: TrackingConfig, config: ExpertConfig):
     return SubprocVecEnv(factories) if config.subprocess_envs and n_envs > 1 else DummyVecEnv(factories)
 
 
-def _ppo_settings(config: ExpertConfig) -> PpoSettings:
+def _learning_rate(config: ExpertConfig, state: dict | None):
+    """The step-size schedule: the seed's piecewise one, or a KL-adaptive one (resumed at its last value)."""
+    if config.schedule == "adaptive":
+        start = (state or {}).get("learning_rate", config.learning_rates[0])
+        return KlAdaptiveLearningRate(start, config.desired_kl)
+    return PiecewiseLearningRate(config.learning_rates)
+
+
+def _ppo_settings(config: ExpertConfig, state: dict | None = None) -> PpoSettings:
     return PpoSettings.from_config(
         config,
-        learning_rate=PiecewiseLearningRate(config.learning_rates),
+        learning_rate=_learning_rate(config, state),
         steps_per_env=config.steps_per_update // config.resolved_envs(),
         initial_std=config.action_std,
     )
@@ -341,7 +369,7 @@ def _ppo_settings(config: ExpertConfig) -> PpoSettings:
 
 def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, config: ExpertConfig):
     """The checkpoint's PPO and callback state, or a new PPO and a fresh state."""
-    settings = _ppo_settings(config)
+    settings = _ppo_settings(config, resume_state)
     if resume_state is not None:
         model = load_ppo(
             expert.checkpoint_model,
@@ -363,8 +391,9 @@ def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, conf
             "next_checkpoint": config.checkpoint_every,
         }
     state["recent"] = []
-    model.policy.log_std.requires_grad_(False)  # the experts' action noise is fixed (MoCapAct)
-    model.set_logger(configure(str(expert.root), ["csv"]))
+    if not config.learn_action_std:
+        model.policy.log_std.requires_grad_(False)  # the experts' action noise is fixed (MoCapAct)
+    model.set_logger(resumable_logger(expert.root, ["csv"], resumed=resume_state is not None))
     return model, state
 
 
@@ -410,12 +439,12 @@ def _remove_checkpoint(expert: ExpertDir) -> None:
 def expert_jobs(snippets: list[str], out: str | Path, config: ExpertConfig, clips: str | None = None) -> list[Job]:
     """One fan-out job per snippet (see :func:`distill.experts.fanout.run_jobs`), finished experts marked done.
 
-    Each job is one process with one environment and one torch thread, so a
-    pool of one worker per core does not oversubscribe the machine.
+    Each job is one process with one torch thread and its environments in-process (``n_envs`` of them;
+    one when it is 0), so a pool of one worker per core does not oversubscribe the machine.
     """
     for snippet in snippets:
         parse_snippet_id(snippet)
-    config = dataclasses.replace(config, n_envs=1, subprocess_envs=False, torch_threads=1)
+    config = dataclasses.replace(config, n_envs=config.n_envs or 1, subprocess_envs=False, torch_threads=1)
     return [
         Job(
             name=snippet,

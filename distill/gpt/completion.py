@@ -53,11 +53,12 @@ class ExpertPrompt:
         expert: A :class:`distill.experts.policy.ExpertPolicy`.
     """
 
-    ref_steps = (0,)
-
     def __init__(self, expert) -> None:
+        from distill.experts.evaluation import expert_ref_steps
+
         self.expert = expert
         self.keys = tuple(expert.keys)
+        self.ref_steps = expert_ref_steps(self.keys)
 
     def act(self, observations, envs, rows):
         """The expert's mean actions, absolute."""

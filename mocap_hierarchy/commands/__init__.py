@@ -23,6 +23,7 @@ COMMAND_MODULES = (
     "decoder",
     "transfer",
     "record",
+    "report",
     "download",
 )
 """Modules of :mod:`mocap_hierarchy.commands`, in the order of the help text."""

@@ -8,7 +8,14 @@ import json
 import sys
 from pathlib import Path
 
-from distill.experts.config import EVALUATIONS, BatchedExpertConfig, EvaluationConfig, ExpertConfig
+from distill.experts.config import (
+    EVALUATIONS,
+    FAST_PROFILE_CHANGES,
+    BatchedExpertConfig,
+    EvaluationConfig,
+    ExpertConfig,
+    expert_profiles,
+)
 from foundation.config_cli import LazySubParsers, add_dataclass_arguments, add_subcommands, dataclass_from_args
 
 
@@ -22,6 +29,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     train.add_argument("--out", type=Path, required=True, help="folder receiving <snippet>/ (seed A.1 layout)")
     train.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
     train.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")
+    _add_profile(train)
     add_dataclass_arguments(train, ExpertConfig)
     train.set_defaults(handler=_train)
 
@@ -33,6 +41,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     many.add_argument("--workers", type=int, default=0, help="local worker processes (0: one per core)")
     many.add_argument("--ray", default=None, metavar="ADDRESS", help="run on a Ray cluster ('local' starts one)")
     many.add_argument("--max-attempts", type=int, default=3, help="attempts per job before it is reported failed")
+    _add_profile(many)
     many.add_argument(
         "--engine",
         choices=("process", "warp"),
@@ -72,8 +81,20 @@ _SHARED_WITH_CPU = tuple(
 """Flags ``--engine warp`` reads from the CPU trainer's flag group (same names, same meaning)."""
 
 
+def _add_profile(parser: argparse.ArgumentParser) -> None:
+    changes = ", ".join(
+        f"{k}={'x'.join(map(str, v)) if isinstance(v, tuple) else v}" for k, v in FAST_PROFILE_CHANGES.items()
+    )
+    parser.add_argument(
+        "--profile",
+        choices=("seed", "fast"),
+        default="seed",
+        help=f"starting settings, changed further by the flags below: seed (the defaults shown) or fast ({changes})",
+    )
+
+
 def _expert_config(args: argparse.Namespace, **fixed) -> ExpertConfig:
-    config = dataclass_from_args(ExpertConfig, args, **fixed)
+    config = dataclass_from_args(ExpertConfig, args, base=expert_profiles()[args.profile], **fixed)
     if args.steps is not None:
         config = dataclasses.replace(config, total_steps=args.steps)
     return config
@@ -120,6 +141,8 @@ def _train_many_batched(args: argparse.Namespace, snippets: list[str]) -> None:
     given = [f"--{name.replace('_', '-')}" for name in cpu_only if getattr(args, name, None) is not None]
     if args.ray is not None or args.workers:
         given.append("--ray/--workers")
+    if args.profile != "seed":
+        given.append(f"--profile {args.profile}")
     if given:
         raise ValueError(f"{', '.join(given)} do not apply to --engine warp (see BatchedExpertConfig in --help)")
     config = dataclass_from_args(BatchedExpertConfig, args)

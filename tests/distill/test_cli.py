@@ -61,3 +61,32 @@ def test_expert_command_errors(tmp_path, capsys):
     assert "does not exist" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["expert", "train", "--snippet", "SYN_stand", "--out", str(tmp_path), "--epochs", "many"])
+
+
+def test_fast_profile_sets_its_values_and_flags_still_win(clip_library, tmp_path, capsys):
+    from distill.experts.config import FAST_PROFILE_CHANGES
+
+    snippets = tmp_path / "snippets.txt"
+    snippets.write_text("SYN_wave-0-196\n")
+    out = tmp_path / "experts"
+    args = ["expert", "train-many", "--snippets", str(snippets), "--out", str(out), "--steps", "512"]
+    assert main([*args, "--workers", "1", "--profile", "fast", *TINY_FLAGS]) == 0
+    saved = json.loads((out / "SYN_wave-0-196" / "config.json").read_text())
+    given = {
+        "steps_per_update",
+        "minibatch_size",
+        "epochs",
+        "hidden_layers",
+        "eval_every",
+        "eval_episodes",
+        "checkpoint_every",
+    }
+    for name, value in FAST_PROFILE_CHANGES.items():
+        expected = list(value) if isinstance(value, tuple) else value
+        if name not in given:
+            assert saved[name] == expected, name
+    assert saved["hidden_layers"] == [16, 16] and saved["epochs"] == 1  # flags beside the profile win
+    assert saved["n_envs"] == FAST_PROFILE_CHANGES["n_envs"]  # train-many keeps the profile's in-process envs
+    capsys.readouterr()
+    assert main([*args, "--engine", "warp", "--profile", "fast"]) == 2
+    assert "--profile fast do not apply to --engine warp" in capsys.readouterr().err

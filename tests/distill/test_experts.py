@@ -1,12 +1,14 @@
+import csv
 import dataclasses
 import json
 import pickle
+from pathlib import Path
 
 import numpy as np
 import pytest
 from stable_baselines3 import PPO
 
-from distill.experts.config import ExpertConfig, PiecewiseLearningRate
+from distill.experts.config import ExpertConfig, KlAdaptiveLearningRate, PiecewiseLearningRate
 from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
 from distill.experts.loading import load_expert
 from distill.experts.training import ConfigMismatchError, _Trainer, keep_training, train_expert
@@ -95,6 +97,43 @@ def test_interrupted_training_resumes_from_its_checkpoint(clip_library, tmp_path
     assert result.stop_reason == "budget" and result.steps == 1536
     steps = [e["steps"] for e in json.loads(expert.evaluations.read_text())]
     assert steps == [0, 512, 1024, 1536]  # history kept; training continued from 512, not from 0
+    with (expert.root / "progress.csv").open() as handle:  # SB3's log of the first run survives the resume
+        logged = [int(row["time/total_timesteps"]) for row in csv.DictReader(handle)]
+    assert logged == [512, 1024, 1536]
+
+
+def test_kl_adaptive_learning_rate_follows_the_updates_kl():
+    schedule = KlAdaptiveLearningRate(1e-4, desired_kl=0.01, factor=2.0, low=3e-5, high=2e-4)
+    assert schedule(1.0) == schedule(0.0) == 1e-4  # the remaining progress does not matter
+    assert schedule.update(0.03) == 5e-5  # above twice the target: smaller
+    assert schedule.update(0.015) == 5e-5  # within [0.5, 2] x the target: unchanged
+    assert schedule.update(1.0) == 3e-5  # never below low
+    assert schedule.update(0.001) == 6e-5 and schedule.update(0.0) == 1.2e-4
+    assert schedule.update(0.0) == 2e-4  # never above high
+
+
+def test_adaptive_step_size_learned_noise_and_reference_observations(clip_library, tmp_path, snippet, tiny):
+    from distill.experts.evaluation import EXPERT_REFERENCE_OBSERVABLES
+    from distill.gpt.completion import ExpertPrompt
+
+    config = dataclasses.replace(
+        tiny,
+        total_steps=1536,
+        learning_rates=(1e-3,),
+        schedule="adaptive",
+        learn_action_std=True,
+        reference_observations=True,
+    )
+    result = train_expert(snippet, tmp_path, config, progress=False)
+    expert = ExpertDir(Path(result.directory))
+    with (expert.root / "progress.csv").open() as handle:
+        rates = [float(row["train/learning_rate"]) for row in csv.DictReader(handle) if row["train/learning_rate"]]
+    assert rates[0] == 1e-3 and len(set(rates)) > 1  # adapted after the first update
+    policy = load_expert(expert.root)
+    assert set(EXPERT_REFERENCE_OBSERVABLES) <= set(policy.keys)
+    assert abs(policy.spec.action_std - 0.1) > 1e-6  # learned, and recorded as the expert's noise
+    assert ExpertPrompt(policy).ref_steps == (1, 2, 3, 4, 5)
+    assert all(np.isfinite(e["normalized_reward"]) for e in json.loads(expert.evaluations.read_text()))
 
 
 def test_learning_rate_thirds():

@@ -1,0 +1,146 @@
+"""``mocap-hierarchy report``: what it finds in a run folder, the numbers it draws, the page it writes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mocap_hierarchy.cli import main
+from mocap_hierarchy.report import build_report
+from mocap_hierarchy.report.figures import evaluation_pairs, expert_quantiles, transfer_bands
+from mocap_hierarchy.report.sources import find_run_contents
+
+
+def _expert(root: Path, clip: str, start: int, end: int, curve: list[tuple[int, float, float]], done: bool = True):
+    folder = root / f"{clip}-{start}-{end}"
+    (folder / "eval_rsi").mkdir(parents=True)
+    (folder / "clip_info.json").write_text(json.dumps({"clip_id": clip, "start_step": start, "end_step": end}))
+    records = [{"steps": s, "normalized_reward": r, "normalized_length": n} for s, r, n in curve]
+    (folder / "eval_rsi" / "evaluations.json").write_text(json.dumps(records))
+    if done:
+        (folder / "done.json").write_text("{}")
+
+
+def _transfer(folder: Path, task: str, decoder: bool, seed: int, curve: list[tuple[int, float]]) -> None:
+    folder.mkdir(parents=True)
+    info = {"task": task, "decoder": {"path": "d.safetensors"} if decoder else None, "config": {"seed": seed}}
+    (folder / "transfer.json").write_text(json.dumps(info))
+    lines = ["time/total_timesteps,time/fps,rollout/ep_rew_mean"]
+    lines += [f"{s},100,{r}" for s, r in curve]
+    (folder / "progress.csv").write_text("\n".join(lines) + "\n")
+
+
+@pytest.fixture
+def run(tmp_path: Path) -> Path:
+    """A run folder with three experts, a noisy/deterministic evaluation pair, a distill eval and 2x2 transfer runs."""
+    experts = tmp_path / "experts"
+    _expert(experts, "SYN_a", 0, 100, [(0, 0.1, 0.2), (10, 0.3, 0.5), (20, 0.5, 0.9)])
+    _expert(experts, "SYN_b", 0, 200, [(0, 0.2, 0.3), (10, 0.4, 0.6)])  # stopped early at 10
+    _expert(experts, "SYN_c", 50, 110, [(0, 0.0, 0.1), (20, 0.6, 1.0)], done=False)
+    for name, noise, values in (("noisy.json", 0.1, (0.4, 0.7)), ("deterministic.json", 0.0, (0.6, 0.9))):
+        results = [{"snippet": "SYN_a-0-100", "normalized_reward": values[0], "normalized_length": values[1]}]
+        (experts / name).write_text(
+            json.dumps({"config": {"action_noise": noise, "init": "random"}, "results": results})
+        )
+    multi_clip = {
+        "config": {},
+        "policy": {"SYN_a-0-100": {"normalized_reward": 0.4, "normalized_length": 0.8}},
+        "experts": {"SYN_a-0-100": {"normalized_reward": 0.5, "normalized_length": 1.0}},
+        "fraction": {},
+    }
+    (tmp_path / "multi_clip.json").write_text(json.dumps(multi_clip))
+    for seed, offset in ((0, 0.0), (1, 2.0)):
+        _transfer(
+            tmp_path / "vc_decoder" / f"seed{seed}",
+            "velocity_control",
+            True,
+            seed,
+            [(100, 1 + offset), (200, 3 + offset)],
+        )
+        _transfer(
+            tmp_path / "vc_joints" / f"seed{seed}",
+            "velocity_control",
+            False,
+            seed,
+            [(100, 1.0), (200, 1.5), (300, 2.0)],
+        )
+    return tmp_path
+
+
+def test_finds_every_kind_of_file_and_skips_checkpoints(run):
+    (run / "experts" / "SYN_a-0-100" / "checkpoint").mkdir()
+    (run / "experts" / "SYN_a-0-100" / "checkpoint" / "transfer.json").write_text("{}")  # never read
+    contents = find_run_contents(run)
+    assert sorted(e.snippet for e in contents.experts) == ["SYN_a-0-100", "SYN_b-0-200", "SYN_c-50-110"]
+    assert {e.frames for e in contents.experts} == {100, 200, 60}
+    assert [e.done for e in sorted(contents.experts, key=lambda e: e.snippet)] == [True, True, False]
+    assert len(contents.evaluations) == 2 and len(contents.multi_clip) == 1 and len(contents.transfer) == 4
+    assert contents.multi_clip[0].fractions() == {"SYN_a-0-100": pytest.approx((0.8, 0.8))}
+    assert {r.label for r in contents.transfer} == {"velocity_control on decoder", "velocity_control on joints"}
+
+
+def test_expert_quantiles_hold_a_finished_experts_last_value(run):
+    quantiles = expert_quantiles(find_run_contents(run).experts)["experts"]
+    np.testing.assert_array_equal(quantiles["steps"], [0, 10, 20])
+    median_length = quantiles["normalized_length"][2]
+    # step 10: a 0.5, b 0.6, c interpolated 0.55; step 20: a 0.9, b held at 0.6, c 1.0
+    np.testing.assert_allclose(median_length, [0.2, 0.55, 0.9])
+
+
+def test_transfer_bands_average_seeds_over_the_steps_all_of_them_reached(run):
+    bands = transfer_bands(find_run_contents(run).transfer)
+    decoder = bands["velocity_control on decoder"]
+    np.testing.assert_allclose(decoder["mean"], [2.0, 4.0])
+    np.testing.assert_allclose(decoder["min"], [1.0, 3.0])
+    np.testing.assert_allclose(decoder["max"], [3.0, 5.0])
+    assert int(decoder["seeds"]) == 2
+    np.testing.assert_array_equal(bands["velocity_control on joints"]["steps"], [100, 200, 300])
+
+
+def test_noisy_and_deterministic_evaluations_pair_by_folder_and_init(run):
+    contents = find_run_contents(run)
+    pairs = evaluation_pairs(contents.evaluations)
+    assert len(pairs) == 1
+    noisy, deterministic = pairs[0]
+    assert noisy.action_noise == 0.1 and deterministic.action_noise == 0.0
+
+
+def test_report_writes_every_figure_and_a_page_with_the_numbers(run, capsys):
+    assert main(["report", str(run)]) == 0
+    out = run / "report"
+    names = sorted(p.name for p in out.glob("*.png"))
+    assert names == [
+        "expert_curves.png",
+        "expert_vs_length.png",
+        "multi_clip_fraction.png",
+        "noisy_vs_deterministic.png",
+        "transfer_curves.png",
+    ]
+    for name in names:
+        assert (out / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    page = (out / "index.html").read_text()
+    for name in names:
+        assert f'src="{name}"' in page
+    assert "<td>0.800</td>" in page  # the multi-clip fraction of SYN_a
+    assert "experts/SYN_b-0-200/eval_rsi/evaluations.json" in page
+    assert f"mocap-hierarchy report {run}" in page
+    assert "open " in capsys.readouterr().out
+    assert not list(out.glob("*.tmp*"))  # written atomically
+
+
+def test_report_of_a_folder_with_nothing_to_draw_says_so(tmp_path, capsys):
+    assert main(["report", str(tmp_path)]) == 2
+    assert "holds nothing to report" in capsys.readouterr().err
+    assert main(["report", str(tmp_path / "missing")]) == 2
+    assert "is not a folder" in capsys.readouterr().err
+    assert not (tmp_path / "report").exists()
+
+
+def test_report_draws_only_what_is_there(tmp_path):
+    _expert(tmp_path, "SYN_a", 0, 100, [(0, 0.1, 0.2), (10, 0.3, 0.5)])
+    report = build_report(tmp_path, tmp_path / "out")
+    assert sorted(p.name for p in report.figures) == ["expert_curves.png", "expert_vs_length.png"]
+    assert report.sections == ["Expert training curves", "Expert performance against snippet length"]
