@@ -33,33 +33,22 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from distill.experts.config import ExpertConfig
+from distill.experts.config import ExpertConfig, expert_profiles
 from distill.experts.fanout import Job, run_jobs
 from distill.experts.files import expert_dir_for
 from distill.experts.training import train_expert
 from foundation.atomic import atomic_path, write_json
+from foundation.config_cli import parse_field_setting
 
 THRESHOLDS = (0.5, 0.9)
 
 
 def parse_setting(text: str) -> tuple[str, typing.Any]:
     """``field=value`` of :class:`ExpertConfig`, the value converted to the field's type."""
-    if "=" not in text:
-        raise SystemExit(f"setting {text!r}: expected FIELD=VALUE")
-    name, raw = text.split("=", 1)
-    hints = typing.get_type_hints(ExpertConfig)
-    if name not in hints:
-        known = ", ".join(f.name for f in dataclasses.fields(ExpertConfig))
-        raise SystemExit(f"setting {text!r}: ExpertConfig has no field {name!r} (fields: {known})")
-    kind = hints[name]
-    if kind is bool:
-        if raw.lower() not in ("true", "false"):
-            raise SystemExit(f"setting {text!r}: expected true or false")
-        return name, raw.lower() == "true"
-    if typing.get_origin(kind) is tuple:
-        element = typing.get_args(kind)[0]
-        return name, tuple(element(v) for v in raw.split(","))
-    return name, kind(raw)
+    try:
+        return parse_field_setting(ExpertConfig, text)
+    except ValueError as error:
+        raise SystemExit(str(error)) from None
 
 
 def parse_variant(text: str) -> tuple[str, dict[str, typing.Any]]:
@@ -166,12 +155,12 @@ def _fmt(value: float | None, unit: str = "") -> str:
 def print_table(summary: dict[str, dict]) -> None:
     """One line per variant: what it reached and how fast."""
     print(
-        f"\n{'variant':<16}{'runs':>5}{'at step':>9}{'best len':>9}{'last len':>9}{'last rew':>9}"
+        f"\n{'variant':<26}{'runs':>5}{'at step':>9}{'best len':>9}{'last len':>9}{'last rew':>9}"
         f"{'steps/s':>8}{'to 0.5':>8}{'to 0.9':>8}{'t 0.5':>7}{'t 0.9':>7}"
     )
     for variant, row in summary.items():
         print(
-            f"{variant:<16}{row['runs']:>5}{row['last_step'] / 1000:>8.0f}k{row['best_length']:>9.3f}"
+            f"{variant:<26}{row['runs']:>5}{row['last_step'] / 1000:>8.0f}k{row['best_length']:>9.3f}"
             f"{row['last_length']:>9.3f}{row['last_reward']:>9.3f}{row.get('steps_per_second', 0):>8.0f}"
             f"{_fmt(row['steps_to_0.5'], 'steps'):>8}{_fmt(row['steps_to_0.9'], 'steps'):>8}"
             f"{_fmt(row['seconds_to_0.5']):>7}{_fmt(row['seconds_to_0.9']):>7}"
@@ -185,6 +174,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300_000, help="environment steps per run")
     parser.add_argument("--eval-every", type=int, default=25_000)
     parser.add_argument("--eval-episodes", type=int, default=50)
+    parser.add_argument(
+        "--profile", choices=("seed", "fast"), default="seed", help="starting settings (--base changes them)"
+    )
     parser.add_argument("--base", nargs="*", default=[], metavar="FIELD=VALUE", help="settings of every variant")
     parser.add_argument(
         "--variant", action="append", default=None, metavar="NAME[:FIELD=VALUE,...]", help="repeat per variant"
@@ -209,7 +201,7 @@ def main() -> None:
         jobs = []
         for name, changes in variants.items():
             for seed in args.seeds:
-                config = dataclasses.replace(ExpertConfig(), **{**base, **changes, "seed": seed})
+                config = dataclasses.replace(expert_profiles()[args.profile], **{**base, **changes, "seed": seed})
                 config.validate()
                 for snippet in args.snippets:
                     kwargs = {

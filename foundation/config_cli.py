@@ -103,6 +103,39 @@ def add_dataclass_arguments(
             group.add_argument(flag, type=_scalar(kind), default=None, help=help_text, dest=f.name)
 
 
+def parse_field_setting(cls: type, text: str) -> tuple[str, Any]:
+    """``FIELD=VALUE`` for a field of the dataclass ``cls``, the value converted to the field's type.
+
+    Tuples are comma-separated (``hidden_layers=256,256``), booleans ``true``/``false``,
+    and an optional field takes ``none``.
+
+    Raises:
+        ValueError: Not ``FIELD=VALUE``, an unknown field (the known ones are listed), or a value of another type.
+    """
+    if "=" not in text:
+        raise ValueError(f"setting {text!r}: expected FIELD=VALUE")
+    name, raw = text.split("=", 1)
+    hints = typing.get_type_hints(cls)
+    if name not in hints:
+        known = ", ".join(f.name for f in dataclasses.fields(cls))
+        raise ValueError(f"setting {text!r}: {cls.__name__} has no field {name!r} (fields: {known})")
+    kind = hints[name]
+    args = typing.get_args(kind)
+    if type(None) in args:
+        if raw.lower() == "none":
+            return name, None
+        kind = next(a for a in args if a is not type(None))
+    if kind is bool:
+        try:
+            return name, _parse_bool(raw)
+        except argparse.ArgumentTypeError as error:
+            raise ValueError(f"setting {text!r}: {error}") from None
+    if typing.get_origin(kind) is tuple:
+        element = _scalar(typing.get_args(kind)[0])
+        return name, tuple(element(v) for v in raw.split(","))
+    return name, kind(raw)
+
+
 def dataclass_from_args(cls: type[T], namespace: argparse.Namespace, base: T | None = None, **fixed: Any) -> T:
     """Builds ``cls`` from parsed flags; flags left unset keep the defaults (``base``'s values when given)."""
     values = {}

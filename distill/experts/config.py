@@ -39,7 +39,11 @@ class ExpertConfig:
             absolute joint targets (not in the seed; see the README for why it exists).
         reference_observations: Also observe the reference's next five frames relative to the walker
             (the multi-clip encoder's reference observables), not only ``time_in_clip`` (not in the seed).
-        termination_threshold: Tracking error that ends an episode.
+        termination_threshold: Tracking error that ends an episode (evaluations always use it).
+        termination_start: With ``termination_curriculum_steps``, the training threshold at step 0; it moves
+            linearly to ``termination_threshold`` over those steps (0: no curriculum).
+        termination_curriculum_steps: Steps over which the training threshold goes from ``termination_start``
+            to ``termination_threshold``.
         train_min_steps: Random training starts exclude the last ``train_min_steps + 1`` frames.
         eval_every: Evaluate every this many environment steps.
         eval_at_start: Also evaluate the untrained policy (step 0), so curves start at the beginning.
@@ -75,6 +79,8 @@ class ExpertConfig:
     residual_actions: bool = False
     reference_observations: bool = False
     termination_threshold: float = 0.3
+    termination_start: float = 0.0
+    termination_curriculum_steps: int = 0
     train_min_steps: int = 9
     eval_every: int = 1_000_000
     eval_at_start: bool = True
@@ -90,6 +96,13 @@ class ExpertConfig:
     torch_threads: int = 0
     device: str = "auto"
     seed: int = 0
+
+    def training_threshold(self, steps: int) -> float:
+        """The termination threshold training uses at ``steps`` (the curriculum's, else ``termination_threshold``)."""
+        if not self.termination_curriculum_steps:
+            return self.termination_threshold
+        done = min(steps / self.termination_curriculum_steps, 1.0)
+        return self.termination_start + (self.termination_threshold - self.termination_start) * done
 
     def resolved_envs(self) -> int:
         """Number of environments: ``n_envs``, or as many as CPU cores that divide ``steps_per_update``."""
@@ -115,6 +128,10 @@ class ExpertConfig:
             raise ValueError(f"schedule must be 'piecewise' or 'adaptive', got {self.schedule!r}")
         if self.desired_kl <= 0:
             raise ValueError("desired_kl must be positive")
+        if self.termination_curriculum_steps < 0 or (self.termination_curriculum_steps and self.termination_start <= 0):
+            raise ValueError(
+                "a termination curriculum needs termination_start > 0 and termination_curriculum_steps > 0"
+            )
         if self.action_std <= 0:
             raise ValueError("action_std must be positive")
         if self.eval_every < 1 or self.eval_episodes < 1 or self.checkpoint_every < 1:
@@ -126,6 +143,9 @@ FAST_PROFILE_CHANGES: dict[str, Any] = {
     "steps_per_update": 4096,
     "epochs": 5,
     "learning_rates": (3e-4,),
+    "action_std": 0.3,
+    "residual_actions": True,
+    "reference_observations": True,
     "n_envs": 8,
     "subprocess_envs": False,
     "torch_threads": 1,
@@ -172,6 +192,7 @@ class BatchedExpertConfig:
         hidden_layers: Hidden sizes of the policy and value networks (tanh; seed).
         action_std: Fixed standard deviation of the Gaussian policy (seed: 0.1).
         residual_actions: Actions are offsets from the reference's next pose.
+        reference_observations: Also observe the reference's next five frames (as ``ExpertConfig``).
         termination_threshold: Tracking error that ends an episode (seed: 0.3).
         train_min_steps: Random training starts exclude the last ``train_min_steps + 1`` frames.
         eval_every: Evaluate every this many steps (the seed's protocol, on the batched engine) and keep
@@ -201,6 +222,7 @@ class BatchedExpertConfig:
     hidden_layers: tuple[int, ...] = (1024, 1024, 1024)
     action_std: float = 0.1
     residual_actions: bool = False
+    reference_observations: bool = False
     termination_threshold: float = 0.3
     train_min_steps: int = 9
     eval_every: int = 1_000_000

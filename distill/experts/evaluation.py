@@ -85,7 +85,7 @@ def training_task(
     (:data:`EXPERT_REFERENCE_OBSERVABLES`, ``ref_steps`` 1..5).
     """
     keys = OBSERVABLE_SETS["expert"]
-    if getattr(config, "reference_observations", False):
+    if config.reference_observations:
         keys = (*keys, *EXPERT_REFERENCE_OBSERVABLES)
     return TrackingConfig(
         snippets=snippets,

@@ -131,6 +131,11 @@ class _ExpertCallback(BaseCallback):
         )
 
     def _on_rollout_start(self) -> None:
+        config = self.trainer.config
+        if config.termination_curriculum_steps:
+            threshold = config.training_threshold(self.num_timesteps)
+            self.model.get_env().env_method("set_termination_threshold", threshold)
+            self.logger.record("train/termination_threshold", threshold)
         schedule = self.model.learning_rate  # as given to PPO (lr_schedule wraps it)
         kl = self.model.logger.name_to_value.get("train/approx_kl")  # the last update's, until the next dump
         if isinstance(schedule, KlAdaptiveLearningRate) and kl:

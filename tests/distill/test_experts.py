@@ -112,7 +112,7 @@ def test_kl_adaptive_learning_rate_follows_the_updates_kl():
     assert schedule.update(0.0) == 2e-4  # never above high
 
 
-def test_adaptive_step_size_learned_noise_and_reference_observations(clip_library, tmp_path, snippet, tiny):
+def test_adaptive_step_size_learned_noise_reference_observations_and_curriculum(clip_library, tmp_path, snippet, tiny):
     from distill.experts.evaluation import EXPERT_REFERENCE_OBSERVABLES
     from distill.gpt.completion import ExpertPrompt
 
@@ -123,17 +123,32 @@ def test_adaptive_step_size_learned_noise_and_reference_observations(clip_librar
         schedule="adaptive",
         learn_action_std=True,
         reference_observations=True,
+        termination_start=1.0,
+        termination_curriculum_steps=1024,
+        eval_at_start=False,
+        eval_every=1024,  # evaluations at 1024 and 1536 follow updates: the kept policy's noise has moved
     )
     result = train_expert(snippet, tmp_path, config, progress=False)
     expert = ExpertDir(Path(result.directory))
     with (expert.root / "progress.csv").open() as handle:
-        rates = [float(row["train/learning_rate"]) for row in csv.DictReader(handle) if row["train/learning_rate"]]
+        rows = list(csv.DictReader(handle))
+    rates = [float(row["train/learning_rate"]) for row in rows if row["train/learning_rate"]]
     assert rates[0] == 1e-3 and len(set(rates)) > 1  # adapted after the first update
+    thresholds = [float(row["train/termination_threshold"]) for row in rows]
+    assert thresholds == pytest.approx([1.0, 0.65, 0.3])  # loose to the seed's 0.3 over 1024 steps
     policy = load_expert(expert.root)
     assert set(EXPERT_REFERENCE_OBSERVABLES) <= set(policy.keys)
     assert abs(policy.spec.action_std - 0.1) > 1e-6  # learned, and recorded as the expert's noise
     assert ExpertPrompt(policy).ref_steps == (1, 2, 3, 4, 5)
     assert all(np.isfinite(e["normalized_reward"]) for e in json.loads(expert.evaluations.read_text()))
+
+
+def test_termination_curriculum_settings():
+    config = ExpertConfig(termination_start=0.9, termination_curriculum_steps=1000)
+    assert [config.training_threshold(s) for s in (0, 500, 1000, 5000)] == pytest.approx([0.9, 0.6, 0.3, 0.3])
+    assert ExpertConfig().training_threshold(0) == 0.3
+    with pytest.raises(ValueError, match="termination_start"):
+        ExpertConfig(termination_curriculum_steps=1000).validate()
 
 
 def test_learning_rate_thirds():
