@@ -184,7 +184,7 @@ def test_field_settings_parse_to_the_fields_types():
     assert parse_field_setting(TransferConfig, "initial_std=none") == ("initial_std", None)
     assert parse_field_setting(TransferConfig, "initial_std=1.5") == ("initial_std", 1.5)
     assert parse_field_setting(TransferConfig, "normalize_reward=false") == ("normalize_reward", False)
-    with pytest.raises(ValueError, match="has no field 'hiden_layers'.*hidden_layers"):
+    with pytest.raises(ValueError, match=r"has no field 'hiden_layers'.*hidden_layers"):
         parse_field_setting(TransferConfig, "hiden_layers=1")
     with pytest.raises(ValueError, match="expected true or false"):
         parse_field_setting(TransferConfig, "normalize_reward=maybe")

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -32,13 +34,18 @@ def _on_grid(steps: list[float], values: list[float], grid: np.ndarray) -> np.nd
     return np.interp(grid, steps, values, left=values[0], right=values[-1])
 
 
+def _grouped(items: list, key: Callable[[Any], str]) -> list[tuple[str, list]]:
+    """``(key, items with that key)`` pairs, sorted by key."""
+    groups: dict[str, list] = defaultdict(list)
+    for item in items:
+        groups[key(item)].append(item)
+    return sorted(groups.items())
+
+
 def expert_quantiles(experts: list[ExpertRun]) -> dict[str, dict[str, np.ndarray]]:
     """Per group: the step grid and the 10/25/50/75/90 % quantiles over snippets of reward and length."""
-    groups: dict[str, list[ExpertRun]] = defaultdict(list)
-    for expert in experts:
-        groups[expert.group].append(expert)
     out = {}
-    for group, runs in sorted(groups.items()):
+    for group, runs in _grouped(experts, lambda e: e.group):
         grid = np.unique(np.concatenate([[e["steps"] for e in run.evaluations] for run in runs]))
         entry: dict[str, np.ndarray] = {"steps": grid}
         for key in ("normalized_reward", "normalized_length"):
@@ -51,16 +58,21 @@ def expert_quantiles(experts: list[ExpertRun]) -> dict[str, dict[str, np.ndarray
     return out
 
 
+def _metric_panels():
+    """A figure with one panel per normalised metric (reward, length): ``(figure, [(axis, key, title), ...])``."""
+    figure, axes = plt.subplots(1, 2, figsize=(11, 4))
+    metrics = (("normalized_reward", "normalised episode reward"), ("normalized_length", "normalised episode length"))
+    for axis in axes:
+        axis.set_ylim(0, 1)
+        axis.grid(alpha=0.3)
+    return figure, [(axis, key, title) for axis, (key, title) in zip(axes, metrics, strict=True)]
+
+
 def plot_expert_curves(experts: list[ExpertRun], path: Path) -> Path:
     """Quantiles over snippets of the experts' evaluations against training steps (the seed's Fig. 2 style)."""
     quantiles = expert_quantiles(experts)
-    figure, axes = plt.subplots(1, 2, figsize=(11, 4))
-    for axis, key, title in zip(
-        axes,
-        ("normalized_reward", "normalized_length"),
-        ("normalised episode reward", "normalised episode length"),
-        strict=True,
-    ):
+    figure, panels = _metric_panels()
+    for axis, key, title in panels:
         for group, entry in quantiles.items():
             steps, q = entry["steps"], entry[key]
             (line,) = axis.plot(steps, q[2], label=f"{group}: median of {int(entry['snippets'])}")
@@ -68,30 +80,19 @@ def plot_expert_curves(experts: list[ExpertRun], path: Path) -> Path:
             axis.fill_between(steps, q[0], q[4], color=line.get_color(), alpha=0.1)
         axis.set_xlabel("environment steps")
         axis.set_title(f"{title} (bands: 25-75 %, 10-90 %)")
-        axis.set_ylim(0, 1)
-        axis.grid(alpha=0.3)
-    axes[0].legend(fontsize=8)
+    panels[0][0].legend(fontsize=8)
     return _save(figure, path)
 
 
 def plot_expert_vs_length(experts: list[ExpertRun], path: Path) -> Path:
     """Each expert's best evaluation against its snippet's length in frames."""
-    figure, axes = plt.subplots(1, 2, figsize=(11, 4))
-    groups = sorted({e.group for e in experts})
-    for axis, key, title in zip(
-        axes,
-        ("normalized_reward", "normalized_length"),
-        ("normalised episode reward", "normalised episode length"),
-        strict=True,
-    ):
-        for group in groups:
-            runs = [e for e in experts if e.group == group]
+    figure, panels = _metric_panels()
+    for axis, key, title in panels:
+        for group, runs in _grouped(experts, lambda e: e.group):
             axis.scatter([r.frames for r in runs], [r.best[key] for r in runs], label=group, alpha=0.8)
         axis.set_xlabel("snippet length (frames of 0.03 s)")
         axis.set_title(f"best {title}")
-        axis.set_ylim(0, 1)
-        axis.grid(alpha=0.3)
-    axes[0].legend(fontsize=8)
+    panels[0][0].legend(fontsize=8)
     return _save(figure, path)
 
 
@@ -156,11 +157,8 @@ def plot_multi_clip_fractions(scores: MultiClipScores, path: Path) -> Path:
 
 def transfer_bands(runs: list[TransferRun]) -> dict[str, dict[str, np.ndarray]]:
     """Per label (task and action space): common steps, then mean, min and max over seeds of the return."""
-    labels: dict[str, list[TransferRun]] = defaultdict(list)
-    for run in runs:
-        labels[run.label].append(run)
     out = {}
-    for label, group in sorted(labels.items()):
+    for label, group in _grouped(runs, lambda r: r.label):
         end = min(r.steps[-1] for r in group)  # only where every seed has data
         grid = np.unique(np.concatenate([[s for s in r.steps if s <= end] for r in group]))
         curves = np.array([np.interp(grid, r.steps, r.returns) for r in group])
