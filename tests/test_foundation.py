@@ -158,6 +158,8 @@ def test_a_first_stop_signal_waits_for_the_loop_and_a_second_stops_at_once():
 
     from foundation.interrupts import TrainingStopped, stop_requests
 
+    # A shell that starts pytest in the background ignores SIGINT; stop_requests keeps an ignored signal ignored.
+    inherited = signal.signal(signal.SIGINT, signal.default_int_handler)
     before = signal.getsignal(signal.SIGTERM)
     with stop_requests() as stop:
         os.kill(os.getpid(), signal.SIGTERM)
@@ -167,6 +169,7 @@ def test_a_first_stop_signal_waits_for_the_loop_and_a_second_stops_at_once():
             os.kill(os.getpid(), signal.SIGINT)
             time.sleep(5)
     assert signal.getsignal(signal.SIGTERM) is before  # handlers restored
+    signal.signal(signal.SIGINT, inherited)
     stopped = stop.stop("distill: stopped at step 3 of 9", "run the same command again")
     assert isinstance(stopped, TrainingStopped) and stopped.exit_status == 143
     assert (

@@ -6,8 +6,8 @@ Stages:
 2. playback: roll the fast tracking environment on every snippet with the
    open-loop playback controller (a baseline, and the environment's speed);
 3. experts: train snippet experts for a few snippets (PPO, the seed's
-   settings with a small budget; residual actions by default, which learn
-   faster, see ``benchmarks/expert_learning.py``), as parallel jobs, and
+   settings with a small budget; residual actions by default, which start at
+   the playback controller's level, see ``benchmarks/expert_learning.py``), as parallel jobs, and
    evaluate them like the playback rows;
 4. dataset: roll the experts out into the rollout dataset (seed A.2);
 5. distill: the multi-clip policy and its frozen decoder file (seed B.2's

@@ -143,6 +143,15 @@ def test_adaptive_step_size_learned_noise_reference_observations_and_curriculum(
     assert all(np.isfinite(e["normalized_reward"]) for e in json.loads(expert.evaluations.read_text()))
 
 
+def test_a_resumed_adaptive_schedule_continues_from_its_saved_step_size():
+    from distill.experts.training import _learning_rate
+
+    config = ExpertConfig(schedule="adaptive", learning_rates=(3e-4,))
+    assert _learning_rate(config, None)(1.0) == 3e-4
+    assert _learning_rate(config, {"learning_rate": 2e-5})(0.5) == 2e-5  # the checkpoint's state
+    assert isinstance(_learning_rate(ExpertConfig(), {"learning_rate": 2e-5}), PiecewiseLearningRate)
+
+
 def test_termination_curriculum_settings():
     config = ExpertConfig(termination_start=0.9, termination_curriculum_steps=1000)
     assert [config.training_threshold(s) for s in (0, 500, 1000, 5000)] == pytest.approx([0.9, 0.6, 0.3, 0.3])
