@@ -22,8 +22,6 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-import numpy as np
-
 from distill.experts.fanout import Job, run_jobs
 from foundation.config_cli import parse_field_setting
 from hierarchy.transfer import train_transfer
@@ -79,7 +77,7 @@ def main() -> None:
     for task in args.tasks:
         on_decoder, on_joints = bands.get(f"{task} on decoder"), bands.get(f"{task} on joints")
         if on_decoder is not None and on_joints is not None:
-            print(f"{task}: decoder - joints = {np.mean(on_decoder['mean'][-1] - on_joints['mean'][-1]):.2f}")
+            print(f"{task}: decoder - joints = {on_decoder['mean'][-1] - on_joints['mean'][-1]:.2f}")
     report = build_report(args.out)
     print(f"\ncurves: {report.page.parent / 'transfer_curves.png'}")
 

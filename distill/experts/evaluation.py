@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from tqdm.auto import tqdm
 
+from distill.dataset.episodes import ROLLOUT_REF_STEPS
 from distill.experts.config import (  # EvaluationConfig: defined there (light), used and re-exported here
     BatchedExpertConfig,
     EvaluationConfig,
@@ -67,13 +68,10 @@ EXPERT_REFERENCE_OBSERVABLES = ("walker/reference_rel_bodies_pos_local", "walker
 """What an expert trained with ``reference_observations`` adds to the seed's observables: the multi-clip
 encoder's view of the reference (bodies' positions and orientations relative to the walker's)."""
 
-REFERENCE_LOOKAHEAD = (1, 2, 3, 4, 5)
-"""Frames ahead an expert that observes the reference sees (the multi-clip policy's ``ref_steps``)."""
-
 
 def expert_ref_steps(keys: tuple[str, ...] | list[str]) -> tuple[int, ...]:
-    """``ref_steps`` of an expert observing ``keys``: 1..5 if it observes the reference, else 0 (the seed's)."""
-    return REFERENCE_LOOKAHEAD if any(k.startswith("walker/reference_") for k in keys) else (0,)
+    """``ref_steps`` of an expert observing ``keys``: the rollouts' 1..5 if it sees the reference, else 0 (seed)."""
+    return ROLLOUT_REF_STEPS if any(k.startswith("walker/reference_") for k in keys) else (0,)
 
 
 def training_task(

@@ -20,6 +20,7 @@ from typing import Protocol
 import numpy as np
 from tqdm.auto import tqdm
 
+from distill.experts.evaluation import expert_ref_steps
 from distill.gpt.config import VARIANT_NOISE, CompletionConfig  # defined there (light), used and re-exported here
 from distill.gpt.model import MotionGpt
 from foundation.lockstep import Lockstep
@@ -54,8 +55,6 @@ class ExpertPrompt:
     """
 
     def __init__(self, expert) -> None:
-        from distill.experts.evaluation import expert_ref_steps
-
         self.expert = expert
         self.keys = tuple(expert.keys)
         self.ref_steps = expert_ref_steps(self.keys)

@@ -31,7 +31,7 @@ def _save(figure, path: Path) -> Path:
 
 def _on_grid(steps: list[float], values: list[float], grid: np.ndarray) -> np.ndarray:
     """A curve on ``grid``: interpolated inside its steps, held at its last value after (a finished run keeps it)."""
-    return np.interp(grid, steps, values, left=values[0], right=values[-1])
+    return np.interp(grid, steps, values)  # np.interp holds the end values outside the steps
 
 
 def _grouped(items: list, key: Callable[[Any], str]) -> list[tuple[str, list]]:
