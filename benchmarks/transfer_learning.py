@@ -11,7 +11,7 @@ setting (mean and min-max over seeds) and draws the curves with
 
 Usage::
 
-    python benchmarks/transfer_learning.py --decoder runs/quickstart/distill/decoder.safetensors \\
+    python benchmarks/transfer_learning.py --decoder synthetic-v1 \\
         --out runs/transfer --tasks velocity_control go_to_target --seeds 0 1 2 --steps 200000 \\
         --set n_envs=4 steps_per_update=4096 minibatch_size=512 hidden_layers=256,256 learning_rate=3e-4
 """
@@ -24,6 +24,7 @@ from pathlib import Path
 
 from distill.experts.fanout import Job, run_jobs
 from foundation.config_cli import parse_field_setting
+from hierarchy.pretrained import names_hint, resolve_decoder
 from hierarchy.transfer import train_transfer
 from hierarchy.transfer_config import TransferConfig
 from mocap_hierarchy.report import build_report
@@ -38,7 +39,7 @@ def run_folder(out: Path, task: str, mode: str, seed: int) -> Path:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--decoder", required=True, help="the decoder file (.safetensors)")
+    parser.add_argument("--decoder", required=True, help="a decoder file (.safetensors) or a shipped name")
     parser.add_argument("--out", type=Path, required=True)
     parser.add_argument("--tasks", nargs="+", default=["velocity_control", "go_to_target"])
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
@@ -46,8 +47,8 @@ def main() -> None:
     parser.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE", help="TransferConfig settings")
     parser.add_argument("--jobs", type=int, default=0, help="runs at a time (0: one per core)")
     args = parser.parse_args()
-    if not Path(args.decoder).is_file():
-        raise SystemExit(f"--decoder {args.decoder}: no such file")
+    if not resolve_decoder(args.decoder).is_file():
+        raise SystemExit(f"--decoder {args.decoder}: no such file ({names_hint()})")
     try:
         settings = dict(parse_field_setting(TransferConfig, s) for s in args.set)
     except ValueError as error:

@@ -20,8 +20,11 @@ requires a gradient, and :meth:`LatentDecoder.train` cannot switch it back.
 The file format (one ``.safetensors`` file, defined only here): tensors
 ``net.*`` (the MLP), ``observation_mean`` and ``observation_std`` (float32),
 and a JSON document under the safetensors metadata key ``mocap_hierarchy``
-holding :class:`DecoderSpec` with the format name and schema version. Loading
-reads tensors and JSON only; no pickled code is ever run.
+holding :class:`DecoderSpec` with the format name and schema version. The
+``net.*`` weights may be stored as float16 (half the size; shipped decoders
+are) and are widened to float32 on loading. Loading reads tensors and JSON
+only; no pickled code is ever run. :func:`load_decoder` also takes the name of
+a decoder shipped with the library (:mod:`hierarchy.pretrained`).
 """
 
 from __future__ import annotations
@@ -38,6 +41,7 @@ from torch import nn
 
 from foundation.described_file import read_described, write_described
 from foundation.networks import ACTIVATIONS, mlp
+from hierarchy.pretrained import names_hint, resolve_decoder
 
 DECODER_FORMAT = "mocap_hierarchy.decoder"
 DECODER_SCHEMA_VERSION = 1
@@ -263,9 +267,17 @@ class LatentDecoder(nn.Module):
 
     # Files -------------------------------------------------------------------
 
-    def save(self, path: str | os.PathLike) -> Path:
-        """Writes the decoder file atomically (see the module docstring); returns the path."""
-        tensors = {f"net.{k}": v for k, v in self.net.state_dict().items()}
+    def save(self, path: str | os.PathLike, weight_dtype: torch.dtype = torch.float32) -> Path:
+        """Writes the decoder file atomically (see the module docstring); returns the path.
+
+        Args:
+            path: The file to write.
+            weight_dtype: ``torch.float32`` or ``torch.float16`` for the ``net.*``
+                weights; the observation statistics stay float32.
+        """
+        if weight_dtype not in (torch.float32, torch.float16):
+            raise ValueError(f"decoder weights are stored as float32 or float16, not {weight_dtype}")
+        tensors = {f"net.{k}": v.to(weight_dtype) for k, v in self.net.state_dict().items()}
         tensors["observation_mean"] = self.observation_mean
         tensors["observation_std"] = self.observation_std
         return write_described(path, tensors, DECODER_FORMAT, DECODER_SCHEMA_VERSION, asdict(self.spec))
@@ -275,12 +287,15 @@ def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") ->
     """Loads a decoder file (tensors and JSON only; nothing is unpickled).
 
     Args:
-        path: A file written by :meth:`LatentDecoder.save`.
-        device: Where to put the weights.
+        path: A file written by :meth:`LatentDecoder.save`, or the name of a
+            decoder shipped with the library (``synthetic-v1``); an existing
+            path wins over a name.
+        device: Where to put the weights (always float32).
 
     Raises:
         DecoderFileError: Missing file, another format, a newer schema, or corrupt content.
     """
+    path = resolve_decoder(path)
     description, tensors = read_described(
         path,
         DECODER_FORMAT,
@@ -289,13 +304,13 @@ def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") ->
         error=DecoderFileError,
         missing_error=DecoderFileError,
         missing_hint="; `mocap-hierarchy distill train` writes one, `mocap-hierarchy decoder import-mocapact` "
-        "converts MoCapAct's",
+        f"converts MoCapAct's ({names_hint()})",
     )
     spec = DecoderSpec.from_json(description, str(path))
     missing = [k for k in ("observation_mean", "observation_std") if k not in tensors]
     if missing:
         raise DecoderFileError(f"{path} lacks tensors {missing}")
-    state = {k.removeprefix("net."): v for k, v in tensors.items() if k.startswith("net.")}
+    state = {k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")}
     decoder = LatentDecoder(spec, tensors["observation_mean"], tensors["observation_std"])
     try:
         decoder.net.load_state_dict(state)

@@ -36,6 +36,7 @@ from foundation.resume import check_same_settings, settings_record
 from foundation.sb3 import PpoSettings, build_ppo, load_ppo, resumable_logger, save_sb3
 from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
+from hierarchy.pretrained import pretrained_name, resolve_decoder
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
 from hierarchy.transfer_config import TransferConfig  # defined there (light), used and re-exported here
 from tasks import registry
@@ -160,7 +161,8 @@ def train_transfer(
             ``tasks.register``) or a function that builds one environment (picklable when
             ``config.subprocess_envs``: a module-level function or class, or one in your script).
         out: Output folder; an interrupted run in it is resumed.
-        decoder: A decoder file; None trains the no-decoder baseline.
+        decoder: A decoder file or a shipped decoder's name (``synthetic-v1``); None trains
+            the no-decoder baseline.
         config: PPO settings (seed defaults).
         task_overrides: Config fields of a registered task to change.
         progress: Show a progress bar.
@@ -175,6 +177,7 @@ def train_transfer(
         raise ValueError(f"steps_per_update {config.steps_per_update} must be a multiple of n_envs {config.n_envs}")
     out = Path(out)
     source = TaskSource.of(task, task_overrides, task_name)
+    decoder = resolve_decoder(decoder) if decoder is not None else None
     frozen = load_decoder(decoder) if decoder is not None else None
     decoder_sha = file_sha256(decoder) if decoder is not None else None
     checkpoint = out / CHECKPOINT_DIR
@@ -235,6 +238,8 @@ def _save_policy(
     if decoder is not None:
         decoder_facts = {
             "path": str(Path(decoder).resolve()),
+            # A shipped decoder is found by name on another installation, where its path differs.
+            "name": pretrained_name(decoder),
             "sha256": decoder_sha,
             "max_latent": config.max_latent,
             "steps_per_latent": config.steps_per_latent,
@@ -312,7 +317,7 @@ class _ProgressAndCheckpoint(BaseCallback):
 def load_policy_and_decoder(
     policy_path: str | os.PathLike, decoder_path: str | os.PathLike | None = None
 ) -> tuple[TaskPolicy, LatentDecoder | None]:
-    """A task policy and the decoder it drives (from its recorded path unless given).
+    """A task policy and the decoder it drives (from its recorded path or shipped name unless given).
 
     Raises:
         ValueError: The decoder file differs from the one the policy was trained with.
@@ -321,7 +326,12 @@ def load_policy_and_decoder(
     facts = policy.spec.decoder
     if facts is None:
         return policy, None
-    path = Path(decoder_path) if decoder_path is not None else Path(facts["path"])
+    if decoder_path is not None:
+        path = resolve_decoder(decoder_path)
+    else:
+        path = Path(facts["path"])
+        if not path.is_file() and facts.get("name"):
+            path = resolve_decoder(facts["name"])
     if not path.is_file():
         raise FileNotFoundError(f"the policy drives decoder {path}, which does not exist; pass --decoder FILE")
     if file_sha256(path) != facts["sha256"]:
@@ -362,7 +372,7 @@ def evaluate_transfer(
     Args:
         policy_path: A ``policy.safetensors`` from :func:`train_transfer`.
         episodes: Episodes to run.
-        decoder_path: Override of the decoder file's location.
+        decoder_path: Override of the decoder file's location (or a shipped decoder's name).
         seed: Seed of the first episode (then ``seed + 1``, ...).
         max_steps: Override of the task's episode limit (shorter evaluations; registered tasks only).
         env_factory: The factory a policy was trained with when its task is not registered.

@@ -66,8 +66,10 @@ def build_rollout(
     Raises:
         ValueError: A policy that cannot drive ``task``, with what would.
     """
+    from hierarchy.pretrained import resolve_decoder
+
     overrides = dict(overrides or {})
-    path = Path(policy)
+    path = Path(policy) if policy == "random" else resolve_decoder(policy)  # a shipped decoder's name works too
     kind = file_format(path)
     if kind == "random":
         env = tasks.make(task, **overrides)

@@ -70,6 +70,10 @@ def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys)
     assert load_decoder(summary["distill"]["decoder"]).spec.hidden_layers == (32, 32, 32)
     assert summary["distill"]["steps"] == 20 and summary["distill"]["fraction_of_experts"]["snippets"] == 1
     assert set(summary["transfer"]) == {"decoder", "joints"}
+    from hierarchy.task_policy import load_task_policy
+
+    assert summary["transfer_decoder"]["name"] == "synthetic-v1"  # velocity control runs on the shipped decoder
+    assert load_task_policy(summary["transfer"]["decoder"]["policy"]).spec.decoder["name"] == "synthetic-v1"
     for mode, path in summary["recordings"].items():
         verify(Path(path))
         assert 0 < frames(Path(path))[0]["/plots/action"] <= 15, mode

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 
+import hierarchy.pretrained as pretrained
 from mocap_hierarchy.quickstart import (
     QuickstartConfig,
     job_seconds,
@@ -41,8 +42,13 @@ class FakeStages:
 
     def __init__(self, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
         self.calls: Counter[str] = Counter()
+        self.transfer_decoders: list[str] = []
         self.fail_in: str | None = None
         self.expert_status = "ok"
+        shipped = tmp_path / "pretrained"
+        shipped.mkdir()
+        (shipped / "synthetic-v1.safetensors").write_text("a shipped decoder")
+        monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", shipped)
         monkeypatch.setattr(pipeline, "ensure_synthetic_library", lambda progress: tmp_path / "clips.h5")
         monkeypatch.setattr(pipeline, "list_clips", lambda library: {"SYN_stand": 181, "SYN_wave": 196})
         for name in ("playback", "experts", "dataset", "distill", "transfer", "record", "plots"):
@@ -90,6 +96,8 @@ class FakeStages:
 
     def _transfer(self, out: Path, decoder, config):
         self._call("transfer_decoder" if decoder else "transfer_joints")
+        if decoder:
+            self.transfer_decoders.append(decoder)
         out.mkdir(parents=True, exist_ok=True)
         (out / "policy.safetensors").write_text("")
         (out / "progress.csv").write_text("")
@@ -164,6 +172,29 @@ def test_changed_settings_rerun_only_the_stages_they_feed(fakes, tmp_path):
     summary = run_quickstart(tiny(tmp_path, transfer_steps=4096))
     assert summary["runs"][1]["stages_run"] == STAGES[4:]
     assert summary["seconds"] == summary["runs"][1]["seconds"]  # a new job: the first run had other settings
+
+
+def test_velocity_control_runs_on_the_shipped_decoder_and_the_summary_says_so(fakes, tmp_path, capsys):
+    summary = run_quickstart(tiny(tmp_path))
+    shipped = str(tmp_path / "pretrained" / "synthetic-v1.safetensors")
+    assert fakes.transfer_decoders == [shipped]
+    assert summary["transfer_decoder"]["name"] == "synthetic-v1"
+    assert summary["verdicts"]["velocity_control"]["decoder"] == shipped
+    assert f"velocity control ran on the decoder synthetic-v1 ({shipped})" in capsys.readouterr().out
+    # A longer distillation does not change the shipped decoder: velocity control is read, not rerun.
+    summary = run_quickstart(tiny(tmp_path, distill_steps=1200))
+    assert summary["runs"][1]["stages_run"] == ["distill", "plots"]
+
+
+def test_own_decoder_runs_velocity_control_on_the_distilled_one(fakes, tmp_path):
+    summary = run_quickstart(tiny(tmp_path, transfer_decoder="own"))
+    assert fakes.transfer_decoders == [summary["distill"]["decoder"]]
+    assert summary["transfer_decoder"]["name"] == "distilled by this quickstart"
+
+
+def test_an_unknown_transfer_decoder_says_what_would_work(fakes, tmp_path):
+    with pytest.raises(FileNotFoundError, match=r"shipped decoders: synthetic-v1\); use --transfer-decoder own"):
+        run_quickstart(tiny(tmp_path, transfer_decoder="synthetic-v9"))
 
 
 def test_a_stage_whose_files_are_gone_is_redone(fakes, tmp_path):

@@ -28,6 +28,7 @@ def rollout_snippet_batched(
     min_steps: int = 9,
     device: str = "auto",
     worlds: int = 1024,
+    action_noise: float | None = None,
 ) -> list[Episode]:
     """Rolls a policy out on one snippet in a batched env: :func:`~distill.dataset.writer.rollout_snippet`'s episodes.
 
@@ -45,7 +46,7 @@ def rollout_snippet_batched(
     started, finished = count, []
     while active.any():
         host = {k: observations[k].double().cpu().numpy() for k in policy.keys}
-        output = policy.act(host, rng)
+        output = policy.act(host, rng, action_noise)
         mean = env.absolute_actions(torch.as_tensor(output.mean_actions, dtype=torch.float32, device=env.device))
         mean_actions = mean.cpu().numpy()
         observations, reward, terminated_on_device, _, ends = env.step(

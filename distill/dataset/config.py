@@ -19,6 +19,9 @@ class RolloutConfig:
         min_steps: Random starts exclude the last ``min_steps + 1`` frames.
         n_envs: Environments stepped in lockstep.
         seed: Seed of starts and action noise.
+        action_noise: Standard deviation of the Gaussian noise added to each expert's mean
+            action (the seed's 0.1); None samples each expert with its own training std
+            (0.3 for ``--profile fast`` experts).
         trust_pickle: Convert experts without our sidecar from their pickles.
         engine: ``process`` (CPU envs in lockstep) or ``warp`` (one batched MuJoCo Warp env per
             snippet and start mode; needs the gpu extra). Same file format either way.
@@ -31,6 +34,7 @@ class RolloutConfig:
     min_steps: int = 9
     n_envs: int = 8
     seed: int = 0
+    action_noise: float | None = 0.1
     trust_pickle: bool = False
     engine: str = "process"
     device: str = "auto"

@@ -38,7 +38,9 @@ class RolloutPolicy(Protocol):
         """GAE parameter."""
         ...
 
-    def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
+    def act(
+        self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None, std: float | None = None
+    ) -> ExpertOutput:
         """Batched actions (see ``ExpertPolicy.act``)."""
         ...
 
@@ -57,12 +59,15 @@ class PlaybackPolicy:
     gamma: float = 0.95
     gae_lambda: float = 0.95
 
-    def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
-        """Zero mean residuals, sampled with ``action_std`` when ``rng`` is given."""
+    def act(
+        self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None, std: float | None = None
+    ) -> ExpertOutput:
+        """Zero mean residuals, sampled with ``std`` (default ``action_std``) when ``rng`` is given."""
+        std = self.action_std if std is None else std
         count = len(next(iter(observations.values())))
         mean = np.zeros((count, 56))
-        sample = mean if rng is None else mean + self.action_std * rng.standard_normal(mean.shape)
-        log_prob = gaussian_log_prob(sample, mean, self.action_std)
+        sample = mean if rng is None else mean + std * rng.standard_normal(mean.shape)
+        log_prob = gaussian_log_prob(sample, mean, std)
         return ExpertOutput(np.clip(sample, -1, 1), mean, log_prob, np.zeros(count))
 
 

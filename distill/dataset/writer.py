@@ -54,6 +54,7 @@ def rollout_snippet(
     n_envs: int = 8,
     walker: WalkerModel | None = None,
     min_steps: int = 9,
+    action_noise: float | None = None,
 ) -> list[Episode]:
     """Rolls a policy out on one snippet, several environments in lockstep.
 
@@ -67,6 +68,7 @@ def rollout_snippet(
         n_envs: Environments stepped together (one batched policy call per step).
         walker: Shared walker model.
         min_steps: Random starts exclude the last ``min_steps + 1`` frames.
+        action_noise: Noise standard deviation; None: the policy's own.
     """
     walker = walker or build_walker()
     config = rollout_task(snippet, init, clips, min_steps, policy.residual_actions)
@@ -78,7 +80,7 @@ def rollout_snippet(
     finished: list[list[Episode]] = [[] for _ in range(n_envs)]
     recorders = [EpisodeRecorder(_flatten(observation, keys)) for observation in lockstep.observations]
     while lockstep.active:
-        output = policy.act(lockstep.batch(policy.keys), rng)
+        output = policy.act(lockstep.batch(policy.keys), rng, action_noise)
         # before stepping moves the reference on
         means = [envs[i].absolute_action(output.mean_actions[row]) for row, i in enumerate(lockstep.active)]
         for row, step in enumerate(lockstep.step(output.actions)):
@@ -243,11 +245,23 @@ def rollout_clip(
         if config.engine == "warp":
             from distill.dataset.batched_rollout import rollout_snippet_batched
 
-            batched = {"clips": clips, "min_steps": config.min_steps, "device": config.device, "worlds": config.worlds}
+            batched = {
+                "clips": clips,
+                "min_steps": config.min_steps,
+                "device": config.device,
+                "worlds": config.worlds,
+                "action_noise": config.action_noise,
+            }
             start = rollout_snippet_batched(policy, snippet, config.n_start, "start", seed=seed, **batched)  # type: ignore[arg-type]
             random = rollout_snippet_batched(policy, snippet, config.n_rsi, "random", seed=seed + 1, **batched)  # type: ignore[arg-type]
         else:
-            common = {"clips": clips, "n_envs": config.n_envs, "walker": walker, "min_steps": config.min_steps}
+            common = {
+                "clips": clips,
+                "n_envs": config.n_envs,
+                "walker": walker,
+                "min_steps": config.min_steps,
+                "action_noise": config.action_noise,
+            }
             start = rollout_snippet(policy, snippet, config.n_start, "start", seed=seed, **common)  # type: ignore[arg-type]
             random = rollout_snippet(policy, snippet, config.n_rsi, "random", seed=seed + 1, **common)  # type: ignore[arg-type]
         results[snippet] = (start, random)

@@ -158,17 +158,20 @@ class ExpertPolicy(nn.Module):
         return np.clip(self.action(self.policy_net(features)).double().numpy(), -1.0, 1.0)
 
     @torch.no_grad()
-    def act(self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None) -> ExpertOutput:
+    def act(
+        self, observations: dict[str, np.ndarray], rng: np.random.Generator | None = None, std: float | None = None
+    ) -> ExpertOutput:
         """Samples actions (``rng`` given) or returns the mean, with log-probs and values.
 
         Args:
             observations: Batched observations ``{key: (N, size)}``.
             rng: Source of the Gaussian noise; None gives deterministic actions.
+            std: Noise standard deviation; None: the expert's own (``spec.action_std``).
         """
         features = self.features(observations)
         mean = self.action(self.policy_net(features)).double().numpy()
         value = self.value(self.value_net(features))[:, 0].double().numpy()
-        std = self.spec.action_std
+        std = self.spec.action_std if std is None else std
         sample = mean if rng is None else mean + std * rng.standard_normal(mean.shape)
         return ExpertOutput(
             actions=np.clip(sample, -1.0, 1.0),

@@ -1,4 +1,4 @@
-"""``mocap-hierarchy decoder``: inspect decoder files, import MoCapAct's checkpoints."""
+"""``mocap-hierarchy decoder``: list the shipped decoders, inspect, package with a model card, import MoCapAct's."""
 
 from __future__ import annotations
 
@@ -8,14 +8,36 @@ from pathlib import Path
 
 from foundation.config_cli import LazySubParsers, add_subcommands
 
+DECODER_HELP = "decoder .safetensors file or a shipped decoder's name (`mocap-hierarchy decoder list`)"
+"""How every command that takes a decoder describes the argument."""
+
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``decoder info`` and ``decoder import-mocapact``."""
-    decoder = subparsers.add_parser("decoder", help="decoder files: inspect, import MoCapAct's")
+    """Registers ``decoder list``, ``info``, ``package``, ``card`` and ``import-mocapact``."""
+    decoder = subparsers.add_parser(
+        "decoder", help="decoder files: list the shipped ones, inspect, package, import MoCapAct's"
+    )
     decoder_commands = add_subcommands(decoder, dest="decoder_command", required=True, metavar="COMMAND")
-    info = decoder_commands.add_parser("info", help="print a decoder file's metadata")
-    info.add_argument("file", type=Path, help="decoder .safetensors file")
+    listing = decoder_commands.add_parser("list", help="the decoders shipped with the library, with their scores")
+    listing.set_defaults(handler=_list)
+    info = decoder_commands.add_parser("info", help="print a decoder file's metadata (and model card)")
+    info.add_argument("file", help=DECODER_HELP)
     info.set_defaults(handler=_info)
+    package = decoder_commands.add_parser(
+        "package", help="write a decoder with a model card attached (float16 weights by default)"
+    )
+    package.add_argument("file", help=DECODER_HELP)
+    package.add_argument("out", type=Path, help="decoder file to write")
+    package.add_argument("--card", type=Path, required=True, help="model card JSON (see hierarchy.model_card)")
+    package.add_argument(
+        "--scores", type=Path, default=None, help="`distill eval --json` file whose scores fill the card"
+    )
+    package.add_argument("--float32", action="store_true", help="keep float32 weights (default: float16)")
+    package.set_defaults(handler=_package)
+    card = decoder_commands.add_parser("card", help="write a decoder's model card as Markdown")
+    card.add_argument("file", help=DECODER_HELP)
+    card.add_argument("--out", type=Path, default=None, help="Markdown file (default: print it)")
+    card.set_defaults(handler=_card)
     convert = decoder_commands.add_parser(
         "import-mocapact", help="convert MoCapAct's multi-clip checkpoint (.ckpt) into a decoder file (no code runs)"
     )
@@ -25,12 +47,59 @@ def add_commands(subparsers: LazySubParsers) -> None:
     convert.set_defaults(handler=_import_mocapact)
 
 
+def _list(args: argparse.Namespace) -> None:
+    from hierarchy.decoder import load_decoder
+    from hierarchy.model_card import card_of
+    from hierarchy.pretrained import names_hint, pretrained_decoders
+
+    shipped = pretrained_decoders()
+    if not shipped:
+        print(names_hint())
+        return
+    for name, path in shipped.items():
+        card = card_of(load_decoder(path)) or {}
+        fraction = card.get("multi_clip", {}).get("fraction", {}).get("normalized_reward")
+        scored = f"; multi-clip policy at {fraction:.2f} of its experts' reward" if fraction is not None else ""
+        print(f"{name}: {card.get('summary', 'no model card')}{scored}  ({path.stat().st_size / 1e6:.1f} MB)")
+
+
 def _info(args: argparse.Namespace) -> None:
     from hierarchy.decoder import load_decoder
 
     decoder = load_decoder(args.file)
     print(json.dumps(decoder.spec.to_json(), indent=2))
     print(f"parameters: {sum(p.numel() for p in decoder.parameters())}")
+
+
+def _package(args: argparse.Namespace) -> None:
+    from hierarchy.model_card import card_with_scores, package_decoder
+
+    card = json.loads(args.card.read_text())
+    if args.scores is not None:
+        card = card_with_scores(card, json.loads(args.scores.read_text()))
+    path, difference = package_decoder(args.file, args.out, card, float16=not args.float32)
+    print(
+        f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, {'float32' if args.float32 else 'float16'} weights); "
+        f"largest action difference from the source decoder: {difference:.2e}"
+    )
+
+
+def _card(args: argparse.Namespace) -> None:
+    from hierarchy.decoder import load_decoder
+    from hierarchy.model_card import card_markdown, card_of
+
+    card = card_of(load_decoder(args.file))
+    if card is None:
+        raise ValueError(f"{args.file} has no model card; `mocap-hierarchy decoder package` attaches one")
+    text = card_markdown(card, str(args.file))
+    if args.out is None:
+        print(text)
+        return
+    from foundation.atomic import atomic_path
+
+    with atomic_path(args.out) as temporary:
+        temporary.write_text(text)
+    print(f"wrote {args.out}")
 
 
 def _import_mocapact(args: argparse.Namespace) -> None:

@@ -13,7 +13,9 @@ def add_commands(subparsers: LazySubParsers) -> None:
     record = subparsers.add_parser("record", help="record a rollout of any policy on any task into a rerun .rrd file")
     record.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
     record.add_argument(
-        "--policy", required=True, help="random, an expert directory, or a policy/decoder/GPT .safetensors file"
+        "--policy",
+        required=True,
+        help="random, an expert directory, a policy/decoder/GPT .safetensors file, or a shipped decoder's name",
     )
     record.add_argument("--out", type=Path, required=True, help="the .rrd file to write")
     record.add_argument("--episodes", type=int, default=1, help="episodes to record (default: 1)")

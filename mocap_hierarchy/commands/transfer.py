@@ -14,6 +14,7 @@ from foundation.config_cli import (
     dataclass_from_args,
     file_in_folder,
 )
+from mocap_hierarchy.commands.decoder import DECODER_HELP
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
@@ -24,7 +25,9 @@ def add_commands(subparsers: LazySubParsers) -> None:
     evaluate = transfer_commands.add_parser("eval", help="run a task policy and report the task's returns")
     evaluate.add_argument("policy", type=Path, help="policy.safetensors (or the training folder)")
     evaluate.add_argument("--episodes", type=int, default=10, help="episodes to run (default: 10)")
-    evaluate.add_argument("--decoder", type=Path, default=None, help="where the policy's decoder file is now")
+    evaluate.add_argument(
+        "--decoder", default=None, help="where the policy's decoder file is now (or a shipped decoder's name)"
+    )
     evaluate.add_argument("--max-steps", type=int, default=None, help="shorter episodes than the task's limit")
     evaluate.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluate.add_argument("--json", type=Path, default=None, help="write the summary here")
@@ -35,7 +38,9 @@ def _build_train(parser: argparse.ArgumentParser) -> None:
     from hierarchy.transfer_config import TransferConfig
 
     parser.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
-    parser.add_argument("--decoder", type=Path, default=None, help="decoder file; omit for the no-decoder baseline")
+    parser.add_argument(
+        "--decoder", default=None, help=f"{DECODER_HELP}; omit for the no-decoder baseline (joint targets)"
+    )
     parser.add_argument("--out", type=Path, required=True, help="output folder (policy.safetensors lands here)")
     parser.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")
     parser.add_argument(

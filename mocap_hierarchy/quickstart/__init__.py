@@ -12,8 +12,11 @@ Stages:
 4. dataset: roll the experts out into the rollout dataset (seed A.2);
 5. distill: the multi-clip policy and its frozen decoder file (seed B.2's
    objective; hidden layers shrunk to fit the budget), evaluated against the experts;
-6. transfer: velocity control trained with PPO on top of the decoder and, as
-   the baseline, on raw joint targets, each evaluated deterministically;
+6. transfer: velocity control trained with PPO on top of a decoder and, as
+   the baseline, on raw joint targets, each evaluated deterministically. The
+   decoder is the shipped ``synthetic-v1`` by default (``transfer_decoder``;
+   ``own`` takes the one stage 5 distilled), so the high-level policy rises on
+   skills trained far longer than the quickstart can; the summary names it;
 7. recordings: both velocity-control policies recorded to ``.rrd`` files;
 8. plots: PNG training curves;
 

@@ -7,6 +7,9 @@ from dataclasses import dataclass
 EPISODE_LIMIT = 500
 """Steps per velocity-control episode in the quickstart (the seed's task allows 2000)."""
 
+OWN_DECODER = "own"
+"""``transfer_decoder`` value naming the decoder the quickstart distils itself."""
+
 MODE_LABELS = {"decoder": "on the decoder", "joints": "on joint targets (baseline)"}
 """How messages name the two velocity-control modes."""
 
@@ -24,6 +27,9 @@ class QuickstartConfig:
         rollouts_per_snippet: Start-of-snippet and random-start episodes each, per expert.
         distill_steps: Optimiser steps of the distillation.
         distill_hidden: Width of the encoder's and decoder's hidden layers (the seed: 1024).
+        transfer_decoder: The decoder velocity control runs on: a shipped decoder's name
+            (``synthetic-v1``, distilled from experts trained far longer than the quickstart
+            can), a decoder file, or ``own`` for the one this quickstart distils.
         transfer_steps: Environment steps of each velocity-control run.
         record_steps: Steps of each velocity-control recording.
         scale: Multiplies every budget (episodes, steps, rollouts) for real runs.
@@ -39,6 +45,7 @@ class QuickstartConfig:
     rollouts_per_snippet: int = 5
     distill_steps: int = 600
     distill_hidden: int = 256
+    transfer_decoder: str = "synthetic-v1"
     transfer_steps: int = 8192
     record_steps: int = 200
     scale: float = 1.0

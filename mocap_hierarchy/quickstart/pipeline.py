@@ -8,7 +8,9 @@ from pathlib import Path
 from typing import Any
 
 from foundation.atomic import write_json
-from mocap_hierarchy.quickstart.config import MODE_LABELS, QuickstartConfig
+from foundation.fingerprints import file_sha256
+from hierarchy.pretrained import resolve_decoder
+from mocap_hierarchy.quickstart.config import MODE_LABELS, OWN_DECODER, QuickstartConfig
 from mocap_hierarchy.quickstart.plots import plots_stage
 from mocap_hierarchy.quickstart.records import STAGES_DIR, RunLog, StageRunner, settings_digest
 from mocap_hierarchy.quickstart.report import print_summary
@@ -88,15 +90,17 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
         functools.partial(distill_stage, out / "dataset", out / "distill", experts, config),
         outputs=lambda result: [result["decoder"], result["policy"], result["history"]],
     )
+    transfer_decoder = _transfer_decoder(config, distilled)
+    print(f"velocity control runs on the decoder {transfer_decoder['name']} ({transfer_decoder['path']})")
     transfer = {
         mode: stages.run(
             f"transfer_{mode}",
             f"velocity control {MODE_LABELS[mode]}",
-            {**pick("transfer_steps", "scale", "seed"), "decoder": distilled if decoder else None},
+            {**pick("transfer_steps", "scale", "seed"), "decoder": transfer_decoder if decoder else None},
             functools.partial(transfer_stage, out / f"velocity_{mode}", decoder, config),
             outputs=lambda result: [result["policy"], result["progress"]],
         )
-        for mode, decoder in (("decoder", distilled["decoder"]), ("joints", None))
+        for mode, decoder in (("decoder", transfer_decoder["path"]), ("joints", None))
     }
     recordings = {
         mode: stages.run(
@@ -123,7 +127,28 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
         "experts": experts,
         "dataset": dataset,
         "distill": distilled,
+        "transfer_decoder": transfer_decoder,
         "transfer": transfer,
         "recordings": recordings,
         "plots": plots,
     }
+
+
+def _transfer_decoder(config: QuickstartConfig, distilled: dict) -> dict[str, str]:
+    """The decoder velocity control runs on: ``{name, path, sha256}`` (its digest keys the stage record).
+
+    Raises:
+        FileNotFoundError: ``transfer_decoder`` names neither a shipped decoder nor a file.
+    """
+    if config.transfer_decoder == OWN_DECODER:
+        name, path = "distilled by this quickstart", Path(distilled["decoder"])
+    else:
+        name, path = config.transfer_decoder, resolve_decoder(config.transfer_decoder)
+        if not path.is_file():
+            from hierarchy.pretrained import names_hint
+
+            raise FileNotFoundError(
+                f"transfer_decoder {config.transfer_decoder!r} is neither a decoder file nor a shipped name "
+                f"({names_hint()}); use --transfer-decoder own for the quickstart's own decoder"
+            )
+    return {"name": name, "path": str(path), "sha256": file_sha256(path)}

@@ -47,6 +47,9 @@ def print_summary(summary: dict) -> None:
             f"({run['steps']} training steps)"
         )
     print(f"decoder file: {summary['distill']['decoder']}")
+    if "transfer_decoder" in summary:
+        used = summary["transfer_decoder"]
+        print(f"velocity control ran on the decoder {used['name']} ({used['path']})")
     print("\nverdicts:")
     groups: dict[str, list[str]] = {}
     for snippet, verdict in verdicts["experts"].items():

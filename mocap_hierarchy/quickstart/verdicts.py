@@ -39,7 +39,7 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
     return {
         "experts": _expert_verdicts(summary["playback"], summary["experts"]),
         "multi_clip": _multi_clip_verdict(summary["distill"]["fraction_of_experts"]),
-        "velocity_control": _velocity_verdict(summary["transfer"], summary["distill"]["decoder"]),
+        "velocity_control": _velocity_verdict(summary["transfer"], _decoder_path(summary)),
     }
 
 
@@ -104,3 +104,8 @@ def _velocity_verdict(transfer: dict, decoder: str) -> dict[str, Any]:
         verdict["baseline_reward_per_step"] = reward_per_step(baseline)
         verdict["baseline_mean_return"] = baseline["mean_return"]
     return verdict
+
+
+def _decoder_path(summary: dict) -> str:
+    """The decoder velocity control ran on (summaries before ``transfer_decoder`` used their own)."""
+    return summary.get("transfer_decoder", {}).get("path", summary["distill"]["decoder"])

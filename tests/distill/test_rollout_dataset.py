@@ -289,3 +289,16 @@ def test_rollout_command_writes_the_metrics(trained_expert, tmp_path, capsys):
     assert "dataset_metrics.npz" in capsys.readouterr().out
     metrics = np.load(out / "dataset_metrics.npz", allow_pickle=True)
     assert list(metrics["values"].item()) == [trained_expert.name]
+
+
+@pytest.mark.parametrize(("action_noise", "expected_std"), [(0.1, 0.1), (None, 0.4)])
+def test_rollout_noise_is_the_seeds_unless_told_to_keep_the_experts(tmp_path, action_noise, expected_std):
+    """Experts trained with more noise (0.4 here) are rolled out with the seed's 0.1 by default."""
+    config = RolloutConfig(n_start=1, n_rsi=1, action_noise=action_noise)
+    path = rollout_clip("SYN_stand", {"SYN_stand-0-181": PlaybackPolicy(action_std=0.4)}, tmp_path, config)
+    dataset = RolloutDataset(path)
+    noise = np.concatenate(
+        [dataset.read(e, schema.ACTIONS) - dataset.read(e, schema.MEAN_ACTIONS) for e in dataset.episodes]
+    )
+    inside = np.abs(noise) < 0.9  # clipping at the action bounds shrinks the largest draws
+    assert np.median(np.abs(noise[inside])) / 0.674 == pytest.approx(expected_std, rel=0.15)

@@ -1,0 +1,117 @@
+"""Shipped decoders: loading by name, float16 files, model cards, policies that find their decoder by name."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+import torch
+
+import hierarchy.pretrained as pretrained
+import tasks
+from hierarchy import DecoderFileError, load_decoder
+from hierarchy.model_card import action_difference, card_markdown, card_of, package_decoder
+from hierarchy.transfer import evaluate_transfer, train_transfer
+from mocap_hierarchy.cli import main
+
+from .test_decoder import small_decoder
+from .test_transfer import TINY
+
+CARD = {
+    "name": "tiny-v1",
+    "summary": "a test decoder",
+    "protocol": "random starts, noise 0.1",
+    "data": {"snippets": ["SYN_a-0-10"]},
+    "experts": {"SYN_a-0-10": {"normalized_reward": 0.5, "normalized_length": 0.9}},
+    "multi_clip": {
+        "snippets": {"SYN_a-0-10": {"normalized_reward": 0.4, "normalized_length": 0.8}},
+        "fraction": {"normalized_reward": 0.8, "normalized_length": 0.889, "snippets": 1},
+    },
+    "commands": ["mocap-hierarchy distill train --data d --out o"],
+    "notes": ["tiny"],
+}
+
+
+@pytest.fixture
+def shipped(tmp_path, monkeypatch):
+    """A package folder holding one shipped decoder, ``tiny-v1`` (float16, with CARD)."""
+    folder = tmp_path / "pretrained"
+    folder.mkdir()
+    monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", folder)
+    source = small_decoder().save(tmp_path / "source.safetensors")
+    package_decoder(source, folder / "tiny-v1.safetensors", CARD)
+    return folder / "tiny-v1.safetensors"
+
+
+def test_a_shipped_name_loads_its_file_and_card(shipped):
+    assert pretrained.pretrained_decoders() == {"tiny-v1": shipped}
+    decoder = load_decoder("tiny-v1")
+    assert card_of(decoder) == CARD
+    assert decoder.observation_mean.dtype == torch.float32
+    assert all(p.dtype == torch.float32 for p in decoder.parameters())
+    assert pretrained.pretrained_name(shipped) == "tiny-v1"
+
+
+def test_an_existing_path_wins_over_a_name(shipped, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    small_decoder(seed=3).save(tmp_path / "tiny-v1")
+    assert pretrained.resolve_decoder("tiny-v1").resolve() == tmp_path / "tiny-v1"
+    assert card_of(load_decoder("tiny-v1")) is None
+
+
+def test_an_unknown_name_lists_the_shipped_ones(shipped):
+    with pytest.raises(DecoderFileError, match="shipped decoders: tiny-v1"):
+        load_decoder("tiny-v9")
+
+
+def test_float16_file_is_half_the_size_and_acts_alike(tmp_path):
+    source = small_decoder().save(tmp_path / "source.safetensors")
+    path, difference = package_decoder(source, tmp_path / "half.safetensors", CARD)
+    full, _ = package_decoder(source, tmp_path / "full.safetensors", CARD, float16=False)
+    assert 0 < difference < 1e-2
+    assert action_difference(load_decoder(source), load_decoder(full)) == 0.0
+    weights = sum(p.numel() for p in load_decoder(source).net.parameters())
+    assert full.stat().st_size - path.stat().st_size == pytest.approx(2 * weights, rel=0.01)
+    with pytest.raises(ValueError, match="float32 or float16"):
+        load_decoder(source).save(tmp_path / "x.safetensors", torch.bfloat16)
+
+
+def test_card_markdown_has_every_score_and_command():
+    text = card_markdown(CARD)
+    assert "# Decoder `tiny-v1`" in text
+    assert "| SYN_a-0-10 | 0.500 | 0.900 | 0.400 | 0.800 | 0.800 |" in text
+    assert "reward **0.800**" in text
+    assert "mocap-hierarchy distill train --data d --out o" in text
+
+
+def test_decoder_commands_list_info_and_card(shipped, tmp_path, capsys):
+    main(["decoder", "list"])
+    assert "tiny-v1: a test decoder; multi-clip policy at 0.80 of its experts' reward" in capsys.readouterr().out
+    main(["decoder", "info", "tiny-v1"])
+    assert '"summary": "a test decoder"' in capsys.readouterr().out
+    main(["decoder", "card", "tiny-v1", "--out", str(tmp_path / "card.md")])
+    assert (tmp_path / "card.md").read_text() == card_markdown(CARD, "tiny-v1")
+
+
+def test_a_policy_on_a_shipped_decoder_finds_it_by_name_after_the_folder_moves(shipped, tmp_path, monkeypatch):
+    policy = train_transfer("velocity_control", tmp_path / "run", "tiny-v1", TINY, {"max_steps": 20}, progress=False)
+    moved = tmp_path / "site-packages-elsewhere"
+    shutil.move(shipped.parent, moved)
+    monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", moved)
+    summary = evaluate_transfer(policy, episodes=1, max_steps=5)
+    assert summary.episodes == 1 and np.isfinite(summary.mean_return)
+
+
+def test_the_shipped_synthetic_decoder_fits_the_tasks_and_carries_its_card():
+    if "synthetic-v1" not in pretrained.pretrained_decoders():
+        pytest.fail("synthetic-v1 is not shipped in hierarchy/pretrained/ (package data)")
+    decoder = load_decoder("synthetic-v1")
+    card = card_of(decoder)
+    assert card is not None and card["name"] == "synthetic-v1"
+    assert set(card["experts"]) == set(card["multi_clip"]["snippets"])
+    assert pretrained.pretrained_decoders()["synthetic-v1"].stat().st_size < 8e6
+    for task in ("velocity_control", "go_to_target"):
+        env = tasks.make(task)
+        sizes = {k: int(np.prod(v.shape)) for k, v in env.observation_space.spaces.items()}
+        decoder.check_observations(sizes)
