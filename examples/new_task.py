@@ -9,7 +9,7 @@ call makes it a task like the built-in ones (``tasks.make``, its Gymnasium id,
 ``transfer train --task``, ``record --task``), and one ``train_transfer`` call
 trains PPO in the decoder's latent space with resume and a pickle-free policy file.
 
-Run: python examples/new_task.py --decoder runs/quickstart/distill/decoder.safetensors
+Run: python examples/new_task.py --decoder synthetic-v1   (the shipped decoder; or any decoder file)
 (about 4 minutes on 2 cores; it prints the score of the untrained policy and of the trained
 one; ``--steps 32768`` trains on, resuming in ``--out``).
 """
@@ -81,7 +81,7 @@ def untrained_score(decoder: str, episodes: int, max_steps: int) -> float:
 def main(argv: list[str] | None = None) -> float:
     """Trains a high-level policy for ``raise_hand``; returns its mean reward per step."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--decoder", required=True, help="a decoder file (distill train or decoder import-mocapact)")
+    parser.add_argument("--decoder", default="synthetic-v1", help="a decoder file or a shipped decoder's name")
     parser.add_argument("--out", type=Path, default=Path("runs/raise_hand"), help="output folder (resumable)")
     parser.add_argument("--steps", type=int, default=16384, help="high-level steps (each holds a latent 5 steps)")
     parser.add_argument("--n-envs", type=int, default=2, help="environments, each in its own process")
