@@ -21,25 +21,19 @@ from pathlib import Path
 import numpy as np
 
 from foundation.config_cli import file_in_folder
-from hierarchy.transfer import POLICY_FILE, TaskSource, load_policy_and_decoder, make_task_env
+from hierarchy.transfer import POLICY_FILE
+from mocap_hierarchy.record import build_rollout
 
 
 def track(policy_path: Path, steps: int, seed: int) -> dict[str, np.ndarray]:
     """One deterministic episode: commanded and actual horizontal velocity ``(T, 2)`` and rewards ``(T,)``."""
-    policy, decoder = load_policy_and_decoder(policy_path)
-    spec = policy.spec
-    if spec.task != "velocity_control":
-        raise SystemExit(f"{policy_path} was trained on {spec.task!r}, not velocity_control")
-    facts = spec.decoder or {}
-    source = TaskSource.of(spec.task, {**spec.task_overrides, "max_steps": steps})
-    env = make_task_env(source, decoder, facts.get("max_latent", 3.0), facts.get("steps_per_latent", 1))
+    env, act, _ = build_rollout("velocity_control", str(policy_path), {"max_steps": steps})
     task = env.unwrapped
     observation, _ = env.reset(seed=seed)
     commanded, actual, rewards = [], [], []
     done = False
     while not done:
-        action = policy.act({k: v[None] for k, v in observation.items()})[0]
-        observation, reward, terminated, truncated, _ = env.step(action)
+        observation, reward, terminated, truncated, _ = env.step(act(observation))
         commanded.append(task.target_velocity.copy())
         actual.append(task.torso_velocity())
         rewards.append(float(reward))

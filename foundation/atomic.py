@@ -135,8 +135,13 @@ def _process_alive(pid: int) -> bool:
     return True
 
 
+def write_text(path: str | os.PathLike, text: str) -> Path:
+    """Writes ``text`` atomically; returns the path."""
+    with atomic_path(path) as temporary:
+        temporary.write_text(text)
+    return Path(path)
+
+
 def write_json(path: str | os.PathLike, value: Any) -> Path:
     """Writes JSON atomically (indented, keys in insertion order)."""
-    with atomic_path(path) as temporary:
-        temporary.write_text(json.dumps(value, indent=2) + "\n")
-    return Path(path)
+    return write_text(path, json.dumps(value, indent=2) + "\n")

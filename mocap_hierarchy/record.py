@@ -28,6 +28,7 @@ import numpy as np
 
 import tasks
 from foundation.described_file import METADATA_KEY
+from hierarchy.pretrained import resolve_decoder
 
 Act = Callable[[dict[str, np.ndarray]], np.ndarray]
 Rollout = tuple[gym.Env, Act, Callable[[], None] | None]
@@ -66,10 +67,8 @@ def build_rollout(
     Raises:
         ValueError: A policy that cannot drive ``task``, with what would.
     """
-    from hierarchy.pretrained import resolve_decoder
-
     overrides = dict(overrides or {})
-    path = Path(policy) if policy == "random" else resolve_decoder(policy)  # a shipped decoder's name works too
+    path = resolve_decoder(policy)  # a shipped decoder's name works too; anything else stays as given
     kind = file_format(path)
     if kind == "random":
         env = tasks.make(task, **overrides)

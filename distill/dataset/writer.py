@@ -242,28 +242,17 @@ def rollout_clip(
     ):
         policy = source if hasattr(source, "act") else load_expert(str(source), config.trust_pickle)
         seed = config.seed * 1_000_003 + number * 2
+        common = {"clips": clips, "min_steps": config.min_steps, "action_noise": config.action_noise}
         if config.engine == "warp":
             from distill.dataset.batched_rollout import rollout_snippet_batched
 
-            batched = {
-                "clips": clips,
-                "min_steps": config.min_steps,
-                "device": config.device,
-                "worlds": config.worlds,
-                "action_noise": config.action_noise,
-            }
+            batched = {**common, "device": config.device, "worlds": config.worlds}
             start = rollout_snippet_batched(policy, snippet, config.n_start, "start", seed=seed, **batched)  # type: ignore[arg-type]
             random = rollout_snippet_batched(policy, snippet, config.n_rsi, "random", seed=seed + 1, **batched)  # type: ignore[arg-type]
         else:
-            common = {
-                "clips": clips,
-                "n_envs": config.n_envs,
-                "walker": walker,
-                "min_steps": config.min_steps,
-                "action_noise": config.action_noise,
-            }
-            start = rollout_snippet(policy, snippet, config.n_start, "start", seed=seed, **common)  # type: ignore[arg-type]
-            random = rollout_snippet(policy, snippet, config.n_rsi, "random", seed=seed + 1, **common)  # type: ignore[arg-type]
+            lockstep = {**common, "n_envs": config.n_envs, "walker": walker}
+            start = rollout_snippet(policy, snippet, config.n_start, "start", seed=seed, **lockstep)  # type: ignore[arg-type]
+            random = rollout_snippet(policy, snippet, config.n_rsi, "random", seed=seed + 1, **lockstep)  # type: ignore[arg-type]
         results[snippet] = (start, random)
     return write_rollout_file(path, clip_id, results, config.n_start, config.n_rsi)
 

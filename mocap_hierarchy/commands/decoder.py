@@ -95,11 +95,9 @@ def _card(args: argparse.Namespace) -> None:
     if args.out is None:
         print(text)
         return
-    from foundation.atomic import atomic_path
+    from foundation.atomic import write_text
 
-    with atomic_path(args.out) as temporary:
-        temporary.write_text(text)
-    print(f"wrote {args.out}")
+    print(f"wrote {write_text(args.out, text)}")
 
 
 def _import_mocapact(args: argparse.Namespace) -> None:

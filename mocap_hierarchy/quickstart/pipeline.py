@@ -9,7 +9,7 @@ from typing import Any
 
 from foundation.atomic import write_json
 from foundation.fingerprints import file_sha256
-from hierarchy.pretrained import resolve_decoder
+from hierarchy.pretrained import names_hint, resolve_decoder
 from mocap_hierarchy.quickstart.config import MODE_LABELS, OWN_DECODER, QuickstartConfig
 from mocap_hierarchy.quickstart.plots import plots_stage
 from mocap_hierarchy.quickstart.records import STAGES_DIR, RunLog, StageRunner, settings_digest
@@ -145,8 +145,6 @@ def _transfer_decoder(config: QuickstartConfig, distilled: dict) -> dict[str, st
     else:
         name, path = config.transfer_decoder, resolve_decoder(config.transfer_decoder)
         if not path.is_file():
-            from hierarchy.pretrained import names_hint
-
             raise FileNotFoundError(
                 f"transfer_decoder {config.transfer_decoder!r} is neither a decoder file nor a shipped name "
                 f"({names_hint()}); use --transfer-decoder own for the quickstart's own decoder"

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from foundation.atomic import atomic_path
+from foundation.atomic import write_text
 
 
 @dataclass(frozen=True)
@@ -180,7 +180,5 @@ def build_report(run: str | Path, out: str | Path | None = None, evaluate_episod
     command = f"mocap-hierarchy report {shlex.quote(str(run))}"
     if evaluate_episodes:
         command += f" --evaluate {evaluate_episodes}"
-    page = out / "index.html"
-    with atomic_path(page) as temporary:
-        temporary.write_text(render(run, sections, command))
+    page = write_text(out / "index.html", render(run, sections, command))
     return Report(page, written, [s.title for s in sections])
