@@ -60,6 +60,11 @@ class ExpertConfig:
         torch_threads: Torch CPU threads; 0 keeps torch's default.
         device: Torch device for the networks (``auto``, ``cpu``, ``cuda``).
         seed: Random seed.
+        branch_from: A run folder (``SNIPPET/`` expert directories inside) whose checkpoint of this
+            snippet this run continues with its own settings: the networks, the observation
+            normaliser, the step count and the curve so far (empty: start from scratch). With a
+            branch that changes nothing beside it, one change can be measured against the same
+            starting point (``benchmarks/expert_learning.py``).
     """
 
     total_steps: int = 150_000_000
@@ -96,6 +101,7 @@ class ExpertConfig:
     torch_threads: int = 0
     device: str = "auto"
     seed: int = 0
+    branch_from: str = ""
 
     def training_threshold(self, steps: int) -> float:
         """The termination threshold training uses at ``steps`` (the curriculum's, else ``termination_threshold``)."""

@@ -100,6 +100,11 @@ class ExpertDir:
         return self.root / "config.json"
 
     @property
+    def progress(self) -> Path:
+        """stable-baselines3's training log (one row per update)."""
+        return self.root / "progress.csv"
+
+    @property
     def checkpoint_dir(self) -> Path:
         """Resumable training state."""
         return self.root / "checkpoint"

@@ -9,6 +9,7 @@ the same settings. ``done.json`` marks a finished expert, which reruns skip.
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import functools
 import json
@@ -34,9 +35,9 @@ from distill.experts.config import (
 )
 from distill.experts.evaluation import EvaluationConfig, evaluate_policy, training_task
 from distill.experts.fanout import Job
-from distill.experts.files import ExpertDir, expert_dir_for, write_clip_info
+from distill.experts.files import ExpertDir, ExpertFilesError, expert_dir_for, write_clip_info
 from distill.experts.policy import policy_from_sb3
-from foundation.atomic import write_json
+from foundation.atomic import atomic_path, write_json
 from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
 from foundation.provenance import provenance
 from foundation.resume import SettingsMismatchError, check_same_settings
@@ -306,13 +307,13 @@ def train_expert(
     if config.torch_threads > 0:
         torch.set_num_threads(config.torch_threads)
     vec_env = _vec_env(training_task((name,), clip_file, config), config)
-    model, state = _resume_or_build(expert, vec_env, resume_state, config)
+    model, state, continued = _resume_or_build(expert, vec_env, resume_state, config)
 
     trainer = _Trainer(name, expert, clip_file, config, progress)
     with stop_requests() as stop:
         callback = _ExpertCallback(trainer, state, stop)
         try:
-            _learn(model, trainer, callback, state, resumed=resume_state is not None)
+            _learn(model, trainer, callback, state, resumed=continued)
         finally:
             vec_env.close()
         if stop.requested:
@@ -372,8 +373,12 @@ def _ppo_settings(config: ExpertConfig, state: dict | None = None) -> PpoSetting
     )
 
 
+BRANCH_MUST_MATCH = ("hidden_layers", "residual_actions", "reference_observations", "learn_action_std")
+"""Settings a branch shares with the run it continues: they fix the networks' shapes and what they see."""
+
+
 def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, config: ExpertConfig):
-    """The checkpoint's PPO and callback state, or a new PPO and a fresh state."""
+    """The PPO, the callback state and whether it continues earlier steps: a checkpoint, a branch, or new."""
     settings = _ppo_settings(config, resume_state)
     if resume_state is not None:
         model = load_ppo(
@@ -385,6 +390,8 @@ def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, conf
         )
         state = resume_state
         print(f"resuming {expert.root} from step {model.num_timesteps}")
+    elif config.branch_from:
+        model, state = _branch(expert, vec_env, config, settings)
     else:
         model = build_ppo(VecNormalize(vec_env, norm_obs=True, norm_reward=True, gamma=config.gamma), settings)
         state = {
@@ -398,8 +405,83 @@ def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, conf
     state["recent"] = []
     if not config.learn_action_std:
         model.policy.log_std.requires_grad_(False)  # the experts' action noise is fixed (MoCapAct)
-    model.set_logger(resumable_logger(expert.root, ["csv"], resumed=resume_state is not None))
-    return model, state
+    continued = resume_state is not None or bool(config.branch_from)
+    model.set_logger(resumable_logger(expert.root, ["csv"], resumed=continued))
+    return model, state, continued
+
+
+def _branch(expert: ExpertDir, vec_env, config: ExpertConfig, settings: PpoSettings):
+    """PPO and callback state continuing another run's checkpoint of this snippet with ``config``'s settings.
+
+    The branch keeps the source's networks, observation normaliser, step count, wall time and
+    evaluations (its curve starts where the source's stopped); the optimiser's step size,
+    discount, update sizes and (fixed) action noise become the branch's. Its best model is
+    chosen among its own evaluations.
+
+    Raises:
+        ExpertFilesError: The source has no checkpoint of this snippet.
+        ConfigMismatchError: The branch changes a setting in :data:`BRANCH_MUST_MATCH`.
+    """
+    source = expert_dir_for(config.branch_from, expert.root.name)
+    if not source.checkpoint_state.is_file():
+        raise ExpertFilesError(
+            f"branch_from={config.branch_from}: {source.root} has no checkpoint to branch from "
+            "(a finished expert removes its checkpoint; branch from a run that is still under way)"
+        )
+    source_config = expert_config_from_json(json.loads(source.config.read_text()))
+    differ = [k for k in BRANCH_MUST_MATCH if getattr(source_config, k) != getattr(config, k)]
+    if differ:
+        raise ConfigMismatchError(
+            f"branch_from={config.branch_from}: the branch must keep the source's "
+            + ", ".join(f"{k}={getattr(source_config, k)!r}" for k in differ)
+        )
+    model = load_ppo(
+        source.checkpoint_model,
+        source.checkpoint_normaliser,
+        vec_env,
+        config.device,
+        learning_rate=settings.learning_rate,
+        gamma=settings.gamma,
+        gae_lambda=settings.gae_lambda,
+        n_steps=settings.steps_per_env,
+        batch_size=settings.minibatch_size,
+        n_epochs=settings.epochs,
+        clip_range=settings.clip_range,
+        max_grad_norm=settings.max_grad_norm,
+    )
+    model.get_vec_normalize_env().gamma = config.gamma
+    if not config.learn_action_std:
+        with torch.no_grad():
+            model.policy.log_std.fill_(float(np.log(config.action_std)))
+    source_state = json.loads(source.checkpoint_state.read_text())
+    steps = int(model.num_timesteps)
+    evaluations = [{**e, "branched_from": str(source.root)} for e in source_state["evaluations"]]
+    _copy_progress_until(source.progress, expert.progress, steps)
+    print(f"branching {expert.root} from {source.root} at step {steps}")
+    return model, {
+        "evaluations": evaluations,
+        "best": None,
+        "plateau_reward": None,
+        "plateau_since": None,
+        "next_eval": steps + config.eval_every - steps % config.eval_every,
+        "next_checkpoint": steps + config.checkpoint_every - steps % config.checkpoint_every,
+        "wall_seconds_before": source_state.get("wall_seconds_before", 0.0),
+        "branched_at": steps,
+    }
+
+
+def _copy_progress_until(source: Path, target: Path, steps: int) -> None:
+    """The rows of a ``progress.csv`` up to ``steps`` (a checkpoint's), as the start of another run's."""
+    if not source.is_file():
+        return
+    with source.open(newline="") as file:
+        rows = list(csv.reader(file))
+    if not rows:
+        return
+    column = rows[0].index("time/total_timesteps") if "time/total_timesteps" in rows[0] else None
+    kept = [r for r in rows[1:] if column is None or (r[column] and float(r[column]) <= steps)]
+    with atomic_path(target) as temporary, temporary.open("w", newline="") as file:
+        csv.writer(file, lineterminator="\n").writerows([rows[0], *kept])
 
 
 def _learn(model: PPO, trainer: _Trainer, callback: _ExpertCallback, state: dict, resumed: bool) -> None:

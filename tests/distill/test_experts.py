@@ -6,12 +6,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 from stable_baselines3 import PPO
 
 from distill.experts.config import ExpertConfig, KlAdaptiveLearningRate, PiecewiseLearningRate
+from distill.experts.evaluation import training_task
 from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
 from distill.experts.loading import load_expert
-from distill.experts.training import ConfigMismatchError, _Trainer, keep_training, train_expert
+from distill.experts.training import (
+    ConfigMismatchError,
+    _resume_or_build,
+    _Trainer,
+    _vec_env,
+    keep_training,
+    train_expert,
+)
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 
 
@@ -100,6 +109,66 @@ def test_interrupted_training_resumes_from_its_checkpoint(clip_library, tmp_path
     with (expert.root / "progress.csv").open() as handle:  # SB3's log of the first run survives the resume
         logged = [int(row["time/total_timesteps"]) for row in csv.DictReader(handle)]
     assert logged == [512, 1024, 1536]
+
+
+def _interrupted_run(out: Path, snippet: str, config: ExpertConfig, monkeypatch) -> ExpertDir:
+    """A run stopped by a crash at its evaluation of step 1024, leaving its checkpoint of step 512."""
+    original = _Trainer.evaluate
+
+    def crash_at_1024(self, model, steps, state):
+        if steps >= 1024:
+            raise KeyboardInterrupt("simulated kill")
+        return original(self, model, steps, state)
+
+    monkeypatch.setattr(_Trainer, "evaluate", crash_at_1024)
+    with pytest.raises(KeyboardInterrupt):
+        train_expert(snippet, out, config, progress=False)
+    monkeypatch.setattr(_Trainer, "evaluate", original)
+    return ExpertDir(out / snippet)
+
+
+def test_a_branch_continues_another_runs_checkpoint_with_its_own_settings(
+    clip_library, tmp_path, monkeypatch, snippet, tiny
+):
+    config = dataclasses.replace(tiny, total_steps=1536)
+    source = _interrupted_run(tmp_path / "source", snippet, config, monkeypatch)
+    source_weights = PPO.load(source.checkpoint_model, device="cpu").policy.state_dict()
+    branch = dataclasses.replace(config, gamma=0.99, action_std=0.2, branch_from=str(tmp_path / "source"))
+
+    vec_env = _vec_env(training_task((snippet,), str(clip_library), branch), branch)
+    started = ExpertDir(tmp_path / "peek" / snippet)
+    started.root.mkdir(parents=True)
+    model, state, continued = _resume_or_build(started, vec_env, None, branch)
+    assert continued and model.num_timesteps == 512 and model.gamma == 0.99
+    assert model.get_vec_normalize_env().gamma == 0.99 and state["next_eval"] == 1024
+    weights = model.policy.state_dict()
+    for name, value in source_weights.items():  # the source's networks, only the fixed noise is the branch's
+        expected = torch.full_like(value, np.log(0.2)) if name == "log_std" else value
+        assert torch.allclose(weights[name], expected), name
+    vec_env.close()
+
+    result = train_expert(snippet, tmp_path / "branch", branch, progress=False)
+    assert result.stop_reason == "budget" and result.steps == 1536
+    expert = ExpertDir(tmp_path / "branch" / snippet)
+    evaluations = json.loads(expert.evaluations.read_text())
+    assert [e["steps"] for e in evaluations] == [0, 512, 1024, 1536]  # the source's curve, then the branch's
+    assert [("branched_from" in e) for e in evaluations] == [True, True, False, False]
+    assert result.best["steps"] >= 1024  # the best model is one of the branch's own
+    policy = load_expert(expert.root)
+    assert policy.gamma == 0.99 and policy.spec.action_std == pytest.approx(0.2)
+    with expert.progress.open() as handle:
+        assert [int(row["time/total_timesteps"]) for row in csv.DictReader(handle)] == [512, 1024, 1536]
+    assert source.checkpoint_state.is_file()  # the source is left as it was: it can still resume
+
+
+def test_a_branch_needs_a_checkpoint_and_the_sources_networks(clip_library, tmp_path, monkeypatch, snippet, tiny):
+    config = dataclasses.replace(tiny, total_steps=1536)
+    with pytest.raises(ExpertFilesError, match="no checkpoint to branch from"):
+        train_expert(snippet, tmp_path / "b1", dataclasses.replace(config, branch_from=str(tmp_path)), progress=False)
+    _interrupted_run(tmp_path / "source", snippet, config, monkeypatch)
+    wider = dataclasses.replace(config, hidden_layers=(64, 64), branch_from=str(tmp_path / "source"))
+    with pytest.raises(ConfigMismatchError, match=r"hidden_layers=\(32, 32\)"):
+        train_expert(snippet, tmp_path / "b2", wider, progress=False)
 
 
 def test_kl_adaptive_learning_rate_follows_the_updates_kl():
