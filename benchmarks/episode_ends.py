@@ -55,16 +55,16 @@ def roll_out(env: ClipTrackingEnv, act, episodes: int) -> list[dict[str, float]]
     records = []
     for episode in range(episodes):
         observation, _ = env.reset(seed=episode)
-        drifts, done = [], False
+        ends, done = [], False
         while not done:
             observation, _, terminated, truncated, info = env.step(act(observation))
-            drifts.append(episode_end(env)["drift"])
+            ends.append(episode_end(env))
             done = terminated or truncated
         records.append(
             {
-                **episode_end(env),
-                "drift_before": drifts[max(len(drifts) - 1 - LOOKBACK, 0)],
-                "steps": len(drifts),
+                **ends[-1],
+                "drift_before": ends[max(len(ends) - 1 - LOOKBACK, 0)]["drift"],
+                "steps": len(ends),
                 "early": float(terminated),
                 "normalized_length": info["normalized_episode_length"],
             }

@@ -394,14 +394,7 @@ def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, conf
         model, state = _branch(expert, vec_env, config, settings)
     else:
         model = build_ppo(VecNormalize(vec_env, norm_obs=True, norm_reward=True, gamma=config.gamma), settings)
-        state = {
-            "evaluations": [],
-            "best": None,
-            "plateau_reward": None,
-            "plateau_since": None,
-            "next_eval": config.eval_every,
-            "next_checkpoint": config.checkpoint_every,
-        }
+        state = _fresh_state(0, config)
     state["recent"] = []
     if not config.learn_action_std:
         model.policy.log_std.requires_grad_(False)  # the experts' action noise is fixed (MoCapAct)
@@ -458,15 +451,20 @@ def _branch(expert: ExpertDir, vec_env, config: ExpertConfig, settings: PpoSetti
     evaluations = [{**e, "branched_from": str(source.root)} for e in source_state["evaluations"]]
     _copy_progress_until(source.progress, expert.progress, steps)
     print(f"branching {expert.root} from {source.root} at step {steps}")
-    return model, {
-        "evaluations": evaluations,
+    state = _fresh_state(steps, config)
+    state.update(evaluations=evaluations, wall_seconds_before=source_state.get("wall_seconds_before", 0.0))
+    return model, state
+
+
+def _fresh_state(steps: int, config: ExpertConfig) -> dict:
+    """Callback state of a run starting at ``steps``: no best model yet, the next evaluation and checkpoint due."""
+    return {
+        "evaluations": [],
         "best": None,
         "plateau_reward": None,
         "plateau_since": None,
         "next_eval": steps + config.eval_every - steps % config.eval_every,
         "next_checkpoint": steps + config.checkpoint_every - steps % config.checkpoint_every,
-        "wall_seconds_before": source_state.get("wall_seconds_before", 0.0),
-        "branched_at": steps,
     }
 
 
