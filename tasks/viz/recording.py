@@ -138,17 +138,21 @@ class RerunRecorder(gym.Wrapper):
         # leaves no half file, and the next recording of the same file removes what a killed one left.
         self._temporary = owned_temporary(self.path)
         self._stream = rr.RecordingStream(application_id, batcher_config=FILE_BATCHING)
-        self._stream.save(str(self._temporary))
-        self._shapes = WalkerShapes(task.walker)
-        self._ghost = mujoco.MjData(task.walker.model) if hasattr(type(task), "reference") else None
         self.steps = 0
         self.episodes = 0
-        self._stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
-        self._stream.log(
-            "world/floor",
-            rr.Boxes3D(half_sizes=[[8.0, 8.0, 0.001]], centers=[[0.0, 0.0, -0.001]], colors=[(120, 120, 120, 255)]),
-            static=True,
-        )
+        try:  # a signal or error before the caller holds this recorder must not leave the temporary behind
+            self._stream.save(str(self._temporary))
+            self._shapes = WalkerShapes(task.walker)
+            self._ghost = mujoco.MjData(task.walker.model) if hasattr(type(task), "reference") else None
+            self._stream.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+            self._stream.log(
+                "world/floor",
+                rr.Boxes3D(half_sizes=[[8.0, 8.0, 0.001]], centers=[[0.0, 0.0, -0.001]], colors=[(120, 120, 120, 255)]),
+                static=True,
+            )
+        except BaseException:
+            self._drop_file()
+            raise
 
     def reset(self, **kwargs):
         """Resets the environment; the next episode's steps continue the timelines."""
@@ -174,13 +178,16 @@ class RerunRecorder(gym.Wrapper):
 
     def discard(self) -> None:
         """Drops the recording (no file is left) and closes the environment (discarding an inner recorder too)."""
-        self._stream.disconnect()
-        self._temporary.unlink(missing_ok=True)
+        self._drop_file()
         inner = getattr(self.env, "discard", None)
         if inner is not None:
             inner()
         else:
             self.env.close()
+
+    def _drop_file(self) -> None:
+        self._stream.disconnect()
+        self._temporary.unlink(missing_ok=True)
 
     # Logging ---------------------------------------------------------------------------
 
@@ -250,8 +257,8 @@ def record_rollout(
     """
     if episodes < 1:
         raise ValueError("episodes must be at least 1")
+    returns: list[float] = []
     recorder = RerunRecorder(env, path)
-    returns = []
     try:
         for episode in range(episodes):
             observation, _ = recorder.reset(seed=seed + episode)

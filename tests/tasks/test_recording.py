@@ -107,6 +107,20 @@ def test_an_interrupted_recording_leaves_no_file(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_a_recorder_interrupted_while_it_is_built_leaves_no_file(tmp_path, monkeypatch):
+    """A SIGTERM between opening the file and returning the recorder (the caller cannot discard it yet)."""
+    import tasks.viz.recording as recording
+
+    def interrupted(walker):
+        assert list(tmp_path.glob(".built.rrd.*.tmp")), "the file should be open by now"
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(recording, "WalkerShapes", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        RerunRecorder(tasks.make("go_to_target", max_steps=5), tmp_path / "built.rrd")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_slow_rollout_is_not_cut_into_tiny_chunks(tmp_path):
     """Rendering a video alongside made steps slow, and the file 4x larger in hundreds of small chunks."""
     import time
