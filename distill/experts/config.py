@@ -26,6 +26,9 @@ class ExpertConfig:
         max_grad_norm: Gradient norm clipping value.
         learning_rates: Adam step sizes for the first, second and last third of the budget
             (``schedule`` ``piecewise``); with ``adaptive``, the first is the start value.
+        learning_rate_steps: With ``piecewise``, the environment steps at which the step size moves on
+            to the next of ``learning_rates`` (one fewer than the rates, increasing; e.g. ``600000``
+            with rates ``3e-4,1e-4``); empty: the rates share the budget in equal parts (the seed's).
         schedule: ``piecewise`` (the seed's: ``learning_rates`` over equal parts of the budget) or
             ``adaptive`` (after every update, divide the step size by 1.5 when the update's KL divergence
             exceeded twice ``desired_kl``, multiply it by 1.5 when it stayed below half of it).
@@ -76,6 +79,7 @@ class ExpertConfig:
     gamma: float = 0.95
     max_grad_norm: float = 1.0
     learning_rates: tuple[float, ...] = (1e-5, 6e-6, 3e-6)
+    learning_rate_steps: tuple[int, ...] = ()
     schedule: str = "piecewise"
     desired_kl: float = 0.01
     hidden_layers: tuple[int, ...] = (1024, 1024, 1024)
@@ -130,6 +134,17 @@ class ExpertConfig:
             raise ValueError("minibatch_size cannot exceed steps_per_update")
         if not self.learning_rates or min(self.learning_rates) <= 0:
             raise ValueError("learning_rates must be positive")
+        if self.learning_rate_steps:
+            steps = self.learning_rate_steps
+            if len(steps) != len(self.learning_rates) - 1:
+                raise ValueError(
+                    f"learning_rate_steps {steps} must name one step fewer than learning_rates "
+                    f"{self.learning_rates} (where each rate after the first starts)"
+                )
+            if list(steps) != sorted(set(steps)) or steps[0] <= 0:
+                raise ValueError(f"learning_rate_steps {steps} must be positive and increasing")
+            if self.schedule != "piecewise":
+                raise ValueError("learning_rate_steps belongs to the piecewise schedule")
         if self.schedule not in ("piecewise", "adaptive"):
             raise ValueError(f"schedule must be 'piecewise' or 'adaptive', got {self.schedule!r}")
         if self.desired_kl <= 0:
@@ -295,18 +310,30 @@ def expert_config_from_json(values: dict[str, Any]) -> ExpertConfig:
 
 
 class PiecewiseLearningRate:
-    """Learning rate constant over equal parts of the budget (SB3 schedule).
+    """Learning rate constant over parts of the budget (SB3 schedule).
 
     SB3 calls it with the remaining fraction of training (1 at the start, 0 at
-    the end); with three rates it gives the seed's 1e-5 / 6e-6 / 3e-6 thirds.
+    the end; measured against the whole budget, also after a resume). Without
+    ``switch_steps`` the rates share the budget equally: three give the seed's
+    1e-5 / 6e-6 / 3e-6 thirds. With them (and ``total_steps``), rate ``i + 1``
+    starts at environment step ``switch_steps[i]``.
     """
 
-    def __init__(self, rates: tuple[float, ...]) -> None:
+    def __init__(
+        self, rates: tuple[float, ...], switch_steps: tuple[int, ...] = (), total_steps: int | None = None
+    ) -> None:
+        if switch_steps and (len(switch_steps) != len(rates) - 1 or total_steps is None):
+            raise ValueError("switch_steps needs one step per rate after the first, and total_steps")
         self.rates = tuple(float(r) for r in rates)
+        self.switch_steps = tuple(int(s) for s in switch_steps)
+        self.total_steps = total_steps
 
     def __call__(self, progress_remaining: float) -> float:
         """The rate for SB3's remaining fraction of training."""
         done = min(max(1.0 - progress_remaining, 0.0), 1.0)
+        if self.switch_steps:
+            steps = round(done * self.total_steps)
+            return self.rates[sum(steps >= s for s in self.switch_steps)]
         part = min(int(done * len(self.rates)), len(self.rates) - 1)
         return self.rates[part]
 

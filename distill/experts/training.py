@@ -361,7 +361,7 @@ def _learning_rate(config: ExpertConfig, state: dict | None):
     if config.schedule == "adaptive":
         start = (state or {}).get("learning_rate", config.learning_rates[0])
         return KlAdaptiveLearningRate(start, config.desired_kl)
-    return PiecewiseLearningRate(config.learning_rates)
+    return PiecewiseLearningRate(config.learning_rates, config.learning_rate_steps, config.total_steps)
 
 
 def _ppo_settings(config: ExpertConfig, state: dict | None = None) -> PpoSettings:

@@ -127,6 +127,31 @@ def _interrupted_run(out: Path, snippet: str, config: ExpertConfig, monkeypatch)
     return ExpertDir(out / snippet)
 
 
+def _logged_learning_rates(expert: ExpertDir) -> dict[int, float]:
+    """``train/learning_rate`` per ``time/total_timesteps`` row of an expert's progress.csv."""
+    with expert.progress.open() as handle:
+        rows = list(csv.DictReader(handle))
+    return {int(r["time/total_timesteps"]): float(r["train/learning_rate"]) for r in rows if r["train/learning_rate"]}
+
+
+def test_a_resumed_piecewise_schedule_switches_at_the_same_step_as_an_uninterrupted_run(
+    clip_library, tmp_path, monkeypatch, snippet, tiny
+):
+    # The step size drops at step 1536 of 2048. A resume must not restart the schedule
+    # from the resumed run's remaining steps.
+    config = dataclasses.replace(tiny, total_steps=2048, learning_rates=(1e-3, 1e-4), learning_rate_steps=(1536,))
+    train_expert(snippet, tmp_path / "straight", config, progress=False)
+    straight = _logged_learning_rates(ExpertDir(tmp_path / "straight" / snippet))
+    assert straight == {1024: 1e-3, 1536: 1e-3, 2048: 1e-4}  # each row logs the update before it
+
+    killed = _interrupted_run(tmp_path / "killed", snippet, config, monkeypatch)  # resumes from step 512
+    result = train_expert(snippet, tmp_path / "killed", config, progress=False)
+    assert result.steps == 2048
+    resumed = _logged_learning_rates(killed)
+    assert resumed.keys() >= {1536, 2048}  # the rows after the resume (row 1024's update was the killed run's)
+    assert {step: straight[step] for step in resumed} == resumed
+
+
 def test_a_branch_continues_another_runs_checkpoint_with_its_own_settings(
     clip_library, tmp_path, monkeypatch, snippet, tiny
 ):
@@ -232,6 +257,19 @@ def test_termination_curriculum_settings():
 def test_learning_rate_thirds():
     schedule = PiecewiseLearningRate((1e-5, 6e-6, 3e-6))
     assert [schedule(p) for p in (1.0, 0.7, 0.66, 0.4, 0.2, 0.0)] == [1e-5, 1e-5, 6e-6, 6e-6, 3e-6, 3e-6]
+
+
+def test_learning_rate_switch_steps():
+    schedule = PiecewiseLearningRate((3e-4, 1e-4), switch_steps=(600_000,), total_steps=3_000_000)
+    remaining = [1 - s / 3_000_000 for s in (0, 599_999, 600_000, 2_000_000, 3_000_000)]
+    assert [schedule(p) for p in remaining] == [3e-4, 3e-4, 1e-4, 1e-4, 1e-4]
+    ExpertConfig(learning_rates=(3e-4, 1e-4, 3e-5), learning_rate_steps=(600_000, 2_000_000)).validate()
+    with pytest.raises(ValueError, match="one step fewer"):
+        ExpertConfig(learning_rates=(3e-4, 1e-4), learning_rate_steps=(1, 2)).validate()
+    with pytest.raises(ValueError, match="increasing"):
+        ExpertConfig(learning_rates=(3e-4, 1e-4, 3e-5), learning_rate_steps=(5, 5)).validate()
+    with pytest.raises(ValueError, match="piecewise"):
+        ExpertConfig(learning_rates=(3e-4, 1e-4), learning_rate_steps=(5,), schedule="adaptive").validate()
 
 
 def test_early_stopping_rule():
