@@ -33,7 +33,7 @@ from distill.dataset.episodes import (  # noqa: F401 (defined there, shared with
 )
 from distill.dataset.metrics import write_dataset_metrics
 from distill.experts.fanout import Job
-from distill.experts.files import find_experts
+from distill.experts.files import ExpertRoots, find_experts
 from distill.experts.loading import load_expert
 from foundation.atomic import atomic_path
 from foundation.lockstep import Lockstep
@@ -262,8 +262,8 @@ def rollout_path(out: str | os.PathLike, clip_id: str) -> Path:
     return Path(out) / f"{clip_id}{schema.FILE_SUFFIX}"
 
 
-def experts_by_clip(experts_dir: str | os.PathLike) -> dict[str, dict[str, Path]]:
-    """Every expert under ``experts_dir`` as ``{clip id: {snippet id: expert directory}}``, sorted by clip."""
+def experts_by_clip(experts_dir: ExpertRoots) -> dict[str, dict[str, Path]]:
+    """Every expert under ``experts_dir`` (one folder or several), ``{clip id: {snippet id: directory}}`` by clip."""
     by_clip: dict[str, dict[str, Path]] = defaultdict(dict)
     for snippet, expert in find_experts(experts_dir).items():
         by_clip[parse_snippet_id(snippet).clip_id][snippet] = expert.root
@@ -271,7 +271,7 @@ def experts_by_clip(experts_dir: str | os.PathLike) -> dict[str, dict[str, Path]
 
 
 def rollout_jobs(
-    experts_dir: str | os.PathLike, out: str | os.PathLike, config: RolloutConfig, clips: str | None = None
+    experts_dir: ExpertRoots, out: str | os.PathLike, config: RolloutConfig, clips: str | None = None
 ) -> list[Job]:
     """One fan-out job per clip (see :func:`distill.experts.fanout.run_jobs`), complete files marked done."""
     return [
@@ -286,12 +286,12 @@ def rollout_jobs(
 
 
 def rollout_experts(
-    experts_dir: str | os.PathLike,
+    experts_dir: ExpertRoots,
     out: str | os.PathLike,
     config: RolloutConfig | None = None,
     clips: str | None = None,
 ) -> list[Path]:
-    """Rolls out every expert under ``experts_dir``, one file per clip, skipping complete files.
+    """Rolls out every expert under ``experts_dir`` (one folder or several), one file per clip, skipping done ones.
 
     Then writes ``dataset_metrics.npz`` over every file in ``out`` (for MoCapAct's reader).
     """

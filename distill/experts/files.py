@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import json
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -183,21 +184,35 @@ def read_clip_info(root: Path) -> dict:
     return info
 
 
-def find_experts(root: str | os.PathLike) -> dict[str, ExpertDir]:
-    """Every expert directory at or below ``root`` (any depth; ``root`` may be one), keyed by snippet id.
+ExpertRoots = str | os.PathLike | Sequence[str | os.PathLike]
+"""One folder of expert directories (or one expert directory), or several."""
+
+
+def find_experts(roots: ExpertRoots) -> dict[str, ExpertDir]:
+    """Every expert directory at or below ``roots`` (any depth; a root may be one), keyed by snippet id.
+
+    Several roots assemble experts from several runs (e.g. each snippet's best one).
 
     Raises:
-        ExpertFilesError: ``root`` does not exist or holds no expert.
+        ExpertFilesError: A root does not exist or holds no expert, or two directories hold
+            experts of the same snippet (which one to use is the caller's choice: pass only it).
     """
-    root = Path(root)
-    if not root.is_dir():
-        raise ExpertFilesError(f"experts directory {root} does not exist")
-    experts = {}
-    for info in sorted(root.rglob("clip_info.json")):
-        expert = ExpertDir(info.parent)
-        experts[str(expert.snippet())] = expert
-    if not experts:
-        raise ExpertFilesError(f"no expert (no clip_info.json) under {root}")
+    paths = [Path(roots)] if isinstance(roots, str | os.PathLike) else [Path(r) for r in roots]
+    experts: dict[str, ExpertDir] = {}
+    for root in paths:
+        if not root.is_dir():
+            raise ExpertFilesError(f"experts directory {root} does not exist")
+        found = [ExpertDir(info.parent) for info in sorted(root.rglob("clip_info.json"))]
+        if not found:
+            raise ExpertFilesError(f"no expert (no clip_info.json) under {root}")
+        for expert in found:
+            snippet = str(expert.snippet())
+            if snippet in experts:
+                raise ExpertFilesError(
+                    f"two experts for {snippet}: {experts[snippet].root} and {expert.root}; pass the folders "
+                    "so that each snippet's expert is found once (an expert directory itself is a valid folder)"
+                )
+            experts[snippet] = expert
     return experts
 
 

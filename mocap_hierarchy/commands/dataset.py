@@ -13,7 +13,13 @@ from foundation.config_cli import LazySubParsers, add_dataclass_arguments, datac
 def add_commands(subparsers: LazySubParsers) -> None:
     """Registers ``rollout``."""
     rollout = subparsers.add_parser("rollout", help="roll experts out into the dataset (one HDF5 file per clip)")
-    rollout.add_argument("--experts", type=Path, required=True, help="folder of expert directories")
+    rollout.add_argument(
+        "--experts",
+        type=Path,
+        nargs="+",
+        required=True,
+        help="folder(s) of expert directories, or expert directories themselves; each snippet's expert found once",
+    )
     rollout.add_argument("--out", type=Path, required=True, help="dataset folder")
     rollout.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
     rollout.add_argument("--workers", type=int, default=1, help="clips rolled out in parallel processes")

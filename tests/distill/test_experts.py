@@ -346,3 +346,27 @@ def test_automatic_environment_count_divides_the_update(monkeypatch):
     ExpertConfig().validate()
     with pytest.raises(ValueError, match="multiple of the number of environments"):
         ExpertConfig(n_envs=3).validate()
+
+
+def test_experts_are_assembled_from_several_folders_each_snippet_once(tmp_path, trained_expert, snippet):
+    from distill.dataset.config import RolloutConfig
+    from distill.dataset.writer import rollout_jobs
+
+    other = tmp_path / "other_run" / "SYN_stand-0-181"
+    other.mkdir(parents=True)
+    (other / "clip_info.json").write_text(json.dumps({"clip_id": "SYN_stand", "start_step": 0, "end_step": 181}))
+    found = find_experts([trained_expert.parent, other])  # a run folder and an expert directory
+    assert {k: v.root for k, v in found.items()} == {snippet: trained_expert, "SYN_stand-0-181": other}
+    jobs = rollout_jobs([trained_expert.parent, other], tmp_path / "data", RolloutConfig())
+    assert {job.name: sorted(job.kwargs["experts"]) for job in jobs} == {
+        "SYN_stand": ["SYN_stand-0-181"],
+        "SYN_wave": [snippet],
+    }
+
+    second = tmp_path / "second_run" / snippet
+    second.mkdir(parents=True)
+    (second / "clip_info.json").write_text((trained_expert / "clip_info.json").read_text())
+    with pytest.raises(ExpertFilesError, match=f"two experts for {snippet}: .* and .*second_run"):
+        find_experts([trained_expert.parent, tmp_path / "second_run"])
+    with pytest.raises(ExpertFilesError, match="does not exist"):
+        find_experts([trained_expert.parent, tmp_path / "nope"])
