@@ -8,9 +8,10 @@ seed's protocol (random starts excluding the last 30 frames, action noise 0.1)
 every ``--eval-every`` steps. The tool prints, per variant, the steps and wall
 time to a normalised episode length of 0.5 and 0.9, and plots the curves
 against environment steps and wall time (mean over seeds and snippets, band:
-min to max). Runs resume: rerunning the same command continues unfinished
-experts and skips finished ones, and ``--replot`` redraws from what is on disk
-(also while a sweep is still running).
+min to max). Runs resume: rerunning the same command (or one with only some of
+its variants) continues unfinished experts and skips finished ones; ``sweep.json``
+keeps every variant the folder has seen, and the plot and ``--replot`` draw them
+all from what is on disk (also while a sweep is still running).
 
 Usage::
 
@@ -56,6 +57,20 @@ def parse_variant(text: str) -> tuple[str, dict[str, typing.Any]]:
     name, _, changes = text.partition(":")
     settings = dict(parse_setting(c.replace(";", ",")) for c in changes.split(",") if c) if changes else {}
     return name, settings
+
+
+def merged_record(path: Path, base: dict, variants: dict, args: argparse.Namespace) -> dict:
+    """What the sweep folder holds: ``sweep.json``'s variants, seeds and snippets with this command's added.
+
+    A command that resumes one variant of a sweep keeps the others in the record and in the plot.
+    """
+    previous = json.loads(path.read_text()) if path.is_file() else {}
+    return {
+        "base": base,
+        "variants": {**previous.get("variants", {}), **variants},
+        "seeds": sorted({*previous.get("seeds", []), *args.seeds}),
+        "snippets": list(dict.fromkeys([*previous.get("snippets", []), *args.snippets])),
+    }
 
 
 def run_dir(out: Path, variant: str, seed: int) -> Path:
@@ -212,16 +227,14 @@ def main() -> None:
                     }
                     done = expert_dir_for(kwargs["out"], snippet).is_done()
                     jobs.append(Job(f"{name}/seed{seed}/{snippet}", train_expert, kwargs, done))
-        write_json(
-            args.out / "sweep.json",
-            {"base": base, "variants": variants, "seeds": args.seeds, "snippets": args.snippets},
-        )
+        write_json(args.out / "sweep.json", merged_record(args.out / "sweep.json", base, variants, args))
         reports = run_jobs(jobs, workers=args.jobs, max_attempts=1)
         for report in reports:
             if report.status == "failed":
                 print(f"{report.name} failed:\n{report.error}")
 
-    curves = curves_on_disk(args.out, list(variants), args.seeds, args.snippets)
+    record = merged_record(args.out / "sweep.json", base, variants, args)
+    curves = curves_on_disk(args.out, list(record["variants"]), record["seeds"], record["snippets"])
     if not curves:
         raise SystemExit(f"no evaluations under {args.out} yet")
     summary = summarise(curves)
