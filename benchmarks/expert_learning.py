@@ -92,6 +92,18 @@ def curves_on_disk(
     return curves
 
 
+def final_lengths_on_disk(out: Path, variants: list[str], seeds: list[int], snippets: list[str]) -> dict[str, list]:
+    """Per variant, the finished runs' final evaluations (``done.json``; absent without ``final_eval_episodes``)."""
+    finals: dict[str, list] = {}
+    for variant in variants:
+        for seed in seeds:
+            for snippet in snippets:
+                done = expert_dir_for(run_dir(out, variant, seed), snippet).done
+                if done.is_file() and "final_evaluation" in (summary := json.loads(done.read_text())):
+                    finals.setdefault(variant, []).append(summary["final_evaluation"])
+    return finals
+
+
 def first_reaching(records: list[dict], threshold: float, key: str) -> float | None:
     """``key`` (steps or wall seconds) of the first evaluation with normalised length >= ``threshold``."""
     for record in records:
@@ -100,8 +112,12 @@ def first_reaching(records: list[dict], threshold: float, key: str) -> float | N
     return None
 
 
-def summarise(curves: dict[str, list[list[dict]]]) -> dict[str, dict]:
-    """Per variant: runs, last step, best and last length/reward (means), steps and seconds to each threshold."""
+def summarise(curves: dict[str, list[list[dict]]], finals: dict[str, list] | None = None) -> dict[str, dict]:
+    """Per variant: runs, last step, best and last length/reward, steps and seconds to each threshold (means).
+
+    Also the final evaluations' mean length, where every run of the variant finished with one.
+    """
+    finals = finals or {}
     summary = {}
     for variant, runs in curves.items():
         row: dict[str, typing.Any] = {
@@ -119,6 +135,8 @@ def summarise(curves: dict[str, list[list[dict]]]) -> dict[str, dict]:
             row[f"steps_to_{threshold}"] = None if None in steps else float(np.mean(steps))
             wall = [first_reaching(r, threshold, "wall_seconds") for r in runs]
             row[f"seconds_to_{threshold}"] = None if None in wall else float(np.mean(wall))
+        done = finals.get(variant, [])
+        row["final_length"] = float(np.mean([f["normalized_length"] for f in done])) if len(done) == len(runs) else None
         summary[variant] = row
     return summary
 
@@ -171,7 +189,7 @@ def print_table(summary: dict[str, dict]) -> None:
     """One line per variant: what it reached and how fast."""
     print(
         f"\n{'variant':<26}{'runs':>5}{'at step':>9}{'best len':>9}{'last len':>9}{'last rew':>9}"
-        f"{'steps/s':>8}{'to 0.5':>8}{'to 0.9':>8}{'t 0.5':>7}{'t 0.9':>7}"
+        f"{'steps/s':>8}{'to 0.5':>8}{'to 0.9':>8}{'t 0.5':>7}{'t 0.9':>7}{'final len':>10}"
     )
     for variant, row in summary.items():
         print(
@@ -179,6 +197,7 @@ def print_table(summary: dict[str, dict]) -> None:
             f"{row['last_length']:>9.3f}{row['last_reward']:>9.3f}{row.get('steps_per_second', 0):>8.0f}"
             f"{_fmt(row['steps_to_0.5'], 'steps'):>8}{_fmt(row['steps_to_0.9'], 'steps'):>8}"
             f"{_fmt(row['seconds_to_0.5']):>7}{_fmt(row['seconds_to_0.9']):>7}"
+            f"{'-' if row.get('final_length') is None else format(row['final_length'], '.3f'):>10}"
         )
 
 
@@ -237,7 +256,8 @@ def main() -> None:
     curves = curves_on_disk(args.out, list(record["variants"]), record["seeds"], record["snippets"])
     if not curves:
         raise SystemExit(f"no evaluations under {args.out} yet")
-    summary = summarise(curves)
+    finals = final_lengths_on_disk(args.out, list(record["variants"]), record["seeds"], record["snippets"])
+    summary = summarise(curves, finals)
     write_json(args.out / "summary.json", {"summary": summary, "curves": curves})
     title = args.title or f"{', '.join(args.snippets)}: {args.steps:,} steps per run"
     plot(curves, title, args.out / "expert_learning.png")

@@ -53,6 +53,10 @@ class ExpertConfig:
         eval_episodes: Episodes per evaluation.
         eval_min_steps: Evaluation starts exclude the last ``eval_min_steps + 1`` frames (30).
         eval_action_noise: Action noise during evaluation (deterministic policy plus this noise).
+        final_eval_episodes: After training, evaluate the kept (best) expert once more over this many
+            episodes with a seed of its own (the same protocol), recorded as ``final_evaluation`` in
+            ``done.json`` (0: none). The best of several short periodic evaluations overstates the
+            kept expert; this one does not.
         early_stop_length: Early stopping needs the normalised episode length to reach this.
         early_stop_improvement: Relative improvement of the normalised reward that counts.
         early_stop_patience: Stop after this many steps without such an improvement.
@@ -96,6 +100,7 @@ class ExpertConfig:
     eval_episodes: int = 1000
     eval_min_steps: int = 29
     eval_action_noise: float = 0.1
+    final_eval_episodes: int = 0
     early_stop_length: float = 0.98
     early_stop_improvement: float = 0.01
     early_stop_patience: int = 10_000_000
@@ -157,6 +162,8 @@ class ExpertConfig:
             raise ValueError("action_std must be positive")
         if self.eval_every < 1 or self.eval_episodes < 1 or self.checkpoint_every < 1:
             raise ValueError("eval_every, eval_episodes and checkpoint_every must be positive")
+        if self.final_eval_episodes < 0:
+            raise ValueError("final_eval_episodes must be 0 (none) or positive")
 
 
 FAST_PROFILE_CHANGES: dict[str, Any] = {
@@ -172,6 +179,7 @@ FAST_PROFILE_CHANGES: dict[str, Any] = {
     "torch_threads": 1,
     "eval_every": 50_000,
     "eval_episodes": 100,
+    "final_eval_episodes": 1000,
     "checkpoint_every": 50_000,
 }
 """What ``--profile fast`` changes from the seed's settings: the values measured to learn fastest on a small CPU

@@ -36,6 +36,7 @@ from distill.experts.config import (
 from distill.experts.evaluation import EvaluationConfig, evaluate_policy, training_task
 from distill.experts.fanout import Job
 from distill.experts.files import ExpertDir, ExpertFilesError, expert_dir_for, write_clip_info
+from distill.experts.loading import load_expert
 from distill.experts.policy import policy_from_sb3
 from foundation.atomic import atomic_path, write_json
 from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
@@ -86,6 +87,7 @@ def _make_env(tracking: TrackingConfig, seed: int) -> ClipTrackingEnv:
 def _training_fields(config: ExpertConfig) -> dict:
     """Settings that must match to resume (not the budget or the machine)."""
     ignore = {"total_steps", "n_envs", "subprocess_envs", "torch_threads", "device", "eval_at_start"}
+    ignore |= {"final_eval_episodes"}  # read once training has finished
     return {k: v for k, v in asdict(config).items() if k not in ignore}
 
 
@@ -180,6 +182,10 @@ class _ExpertCallback(BaseCallback):
             self.bar.close()
 
 
+FINAL_EVALUATION_SEED_OFFSET = 7919
+"""Added to the run's seed for the final evaluation, so its starts and noise differ from the periodic ones."""
+
+
 class _Trainer:
     """State shared by ``train_expert`` and its callback."""
 
@@ -247,6 +253,37 @@ class _Trainer:
             state["best"] = record
             self._save_best(model, venv, policy)
         return keep_training(state, evaluation.normalized_length, evaluation.normalized_reward, steps, config)
+
+    def final_evaluation(self, best: dict) -> dict:
+        """The kept expert over ``final_eval_episodes`` episodes, seeded apart from the periodic evaluations.
+
+        Not part of the training loop: a stop during it leaves no ``done.json``, and the rerun
+        resumes from the last checkpoint and evaluates again.
+        """
+        config = self.config
+        evaluation = evaluate_policy(
+            load_expert(self.expert.root),
+            self.snippet,
+            EvaluationConfig(
+                episodes=config.final_eval_episodes,
+                init="random",
+                min_steps=config.eval_min_steps,
+                action_noise=config.eval_action_noise,
+                termination_threshold=config.termination_threshold,
+                seed=config.seed + FINAL_EVALUATION_SEED_OFFSET,
+            ),
+            clips=self.clips,
+            walker=self.walker,
+            progress=self.progress,
+        )
+        return {
+            "steps": best["steps"],
+            "episodes": config.final_eval_episodes,
+            "normalized_reward": evaluation.normalized_reward,
+            "normalized_length": evaluation.normalized_length,
+            "episode_return": evaluation.episode_return,
+            "episode_length": evaluation.episode_length,
+        }
 
     def _save_best(self, model: PPO, venv: VecNormalize, policy) -> None:
         save_sb3(model, venv, self.expert.best_model, self.expert.vecnormalize, _SB3_SAVE_EXCLUDE)
@@ -318,7 +355,8 @@ def train_expert(
             vec_env.close()
         if stop.requested:
             raise stop.stop(f"expert {name}: stopped at step {model.num_timesteps}", "run the same command again")
-    _finish(expert, name, model, state, callback.stop_reason, config)
+    final = trainer.final_evaluation(state["best"]) if config.final_eval_episodes else None
+    _finish(expert, name, model, state, callback.stop_reason, config, final)
     return TrainingResult(
         name,
         str(expert.root),
@@ -493,8 +531,16 @@ def _learn(model: PPO, trainer: _Trainer, callback: _ExpertCallback, state: dict
         trainer.evaluate(model, model.num_timesteps, state)
 
 
-def _finish(expert: ExpertDir, name: str, model: PPO, state: dict, stop_reason: str, config: ExpertConfig) -> None:
-    """Marks the expert done (``done.json``) and removes its checkpoint."""
+def _finish(
+    expert: ExpertDir,
+    name: str,
+    model: PPO,
+    state: dict,
+    stop_reason: str,
+    config: ExpertConfig,
+    final: dict | None = None,
+) -> None:
+    """Marks the expert done (``done.json``, with the final evaluation if any) and removes its checkpoint."""
     summary = {
         "snippet": name,
         "steps": int(model.num_timesteps),
@@ -502,6 +548,8 @@ def _finish(expert: ExpertDir, name: str, model: PPO, state: dict, stop_reason: 
         "stop_reason": stop_reason,
         "config": asdict(config),
     }
+    if final is not None:
+        summary["final_evaluation"] = final
     write_json(expert.done, summary)
     _remove_checkpoint(expert)
 

@@ -34,6 +34,7 @@ def test_training_writes_the_seed_layout(trained_expert, snippet):
     assert not expert.checkpoint_dir.exists()  # removed once training finished
     evaluations = json.loads(expert.evaluations.read_text())
     assert [e["steps"] for e in evaluations] == [0, 512, 1024]
+    assert "final_evaluation" not in json.loads(expert.done.read_text())  # final_eval_episodes 0: none
 
 
 def test_sb3_files_load_and_match_the_pickle_free_policy(trained_expert, snippet):
@@ -370,3 +371,27 @@ def test_experts_are_assembled_from_several_folders_each_snippet_once(tmp_path, 
         find_experts([trained_expert.parent, tmp_path / "second_run"])
     with pytest.raises(ExpertFilesError, match="does not exist"):
         find_experts([trained_expert.parent, tmp_path / "nope"])
+
+
+def test_the_final_evaluation_scores_the_kept_expert_with_its_own_seed(
+    clip_library, tmp_path, monkeypatch, snippet, tiny
+):
+    from distill.experts.evaluation import EvaluationConfig, evaluate_policy
+    from distill.experts.training import FINAL_EVALUATION_SEED_OFFSET
+
+    config = dataclasses.replace(tiny, total_steps=1536)
+    expert = _interrupted_run(tmp_path, snippet, config, monkeypatch)
+    final_config = dataclasses.replace(config, final_eval_episodes=6)  # may change on a resume
+    train_expert(snippet, tmp_path, final_config, progress=False)
+    done = json.loads(expert.done.read_text())
+    final = done["final_evaluation"]
+    assert final["episodes"] == 6 and final["steps"] == done["best"]["steps"]
+    again = evaluate_policy(
+        load_expert(expert.root),
+        snippet,
+        EvaluationConfig(episodes=6, min_steps=29, action_noise=0.1, seed=FINAL_EVALUATION_SEED_OFFSET),
+    )
+    assert final["normalized_length"] == pytest.approx(again.normalized_length)
+    assert final["normalized_reward"] == pytest.approx(again.normalized_reward)
+    with pytest.raises(ValueError, match="final_eval_episodes"):
+        ExpertConfig(final_eval_episodes=-1).validate()
