@@ -54,7 +54,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     many.set_defaults(handler=_train_many)
 
     evaluate = commands.add_parser("eval", help="evaluate experts: normalised reward and length")
-    evaluate.add_argument("experts", type=Path, help="an expert directory or a folder of them")
+    evaluate.add_argument("experts", type=Path, nargs="+", help="expert directories or folders of them")
     evaluate.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
     evaluate.add_argument("--deterministic", action="store_true", help="no action noise (same as --action-noise 0)")
     evaluate.add_argument("--trust-pickle", action="store_true", help="convert experts without our sidecar")
@@ -169,7 +169,7 @@ def _evaluate(args: argparse.Namespace) -> None:
     config = dataclass_from_args(EvaluationConfig, args)
     if args.deterministic:
         config = dataclasses.replace(config, action_noise=0.0)
-    experts = find_experts(args.experts)  # also accepts a single expert directory
+    experts = find_experts(args.experts)  # expert directories or folders of them; each snippet once
     results = []
     print(
         f"{'snippet':<28}{'norm. reward':>14}{'norm. length':>14}{'episodes':>10}   init={config.init} "

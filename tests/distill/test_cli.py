@@ -59,6 +59,12 @@ def test_train_many_skips_finished_and_reports(clip_library, tmp_path, capsys):
 def test_expert_command_errors(tmp_path, capsys):
     assert main(["expert", "eval", str(tmp_path / "none")]) == 2
     assert "does not exist" in capsys.readouterr().err
+    for run in ("run_a", "run_b"):  # two runs' experts of one snippet: which one to score is not guessed
+        (tmp_path / run / "SYN_stand-0-181").mkdir(parents=True)
+        info = {"clip_id": "SYN_stand", "start_step": 0, "end_step": 181}
+        (tmp_path / run / "SYN_stand-0-181" / "clip_info.json").write_text(json.dumps(info))
+    assert main(["expert", "eval", str(tmp_path / "run_a"), str(tmp_path / "run_b")]) == 2
+    assert "two experts for SYN_stand-0-181" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["expert", "train", "--snippet", "SYN_stand", "--out", str(tmp_path), "--epochs", "many"])
 
