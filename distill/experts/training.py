@@ -223,36 +223,16 @@ class _Trainer:
         venv = model.get_vec_normalize_env()
         assert isinstance(venv, VecNormalize)
         policy = self._policy(model, venv, steps)
-        evaluation = evaluate_policy(
-            policy,
-            self.snippet,
-            EvaluationConfig(
-                episodes=config.eval_episodes,
-                init="random",
-                min_steps=config.eval_min_steps,
-                action_noise=config.eval_action_noise,
-                termination_threshold=config.termination_threshold,
-                seed=config.seed,
-            ),
-            clips=self.clips,
-            walker=self.walker,
-        )
-        record = {
-            "steps": int(steps),
-            "normalized_reward": evaluation.normalized_reward,
-            "normalized_length": evaluation.normalized_length,
-            "episode_return": evaluation.episode_return,
-            "episode_length": evaluation.episode_length,
-            "wall_seconds": round(self.wall_seconds(state), 1),
-        }
+        evaluation = self._score(policy, config.eval_episodes, config.seed)
+        record = {"steps": int(steps), **evaluation, "wall_seconds": round(self.wall_seconds(state), 1)}
         state["evaluations"].append(record)
         write_json(self.expert.evaluations, state["evaluations"])
-        model.logger.record("eval/normalized_episode_reward", evaluation.normalized_reward)
-        model.logger.record("eval/normalized_episode_length", evaluation.normalized_length)
-        if state["best"] is None or evaluation.normalized_reward > state["best"]["normalized_reward"]:
+        model.logger.record("eval/normalized_episode_reward", record["normalized_reward"])
+        model.logger.record("eval/normalized_episode_length", record["normalized_length"])
+        if state["best"] is None or record["normalized_reward"] > state["best"]["normalized_reward"]:
             state["best"] = record
             self._save_best(model, venv, policy)
-        return keep_training(state, evaluation.normalized_length, evaluation.normalized_reward, steps, config)
+        return keep_training(state, record["normalized_length"], record["normalized_reward"], steps, config)
 
     def final_evaluation(self, best: dict) -> dict:
         """The kept expert over ``final_eval_episodes`` episodes, seeded apart from the periodic evaluations.
@@ -260,25 +240,30 @@ class _Trainer:
         Not part of the training loop: a stop during it leaves no ``done.json``, and the rerun
         resumes from the last checkpoint and evaluates again.
         """
+        episodes = self.config.final_eval_episodes
+        seed = self.config.seed + FINAL_EVALUATION_SEED_OFFSET
+        evaluation = self._score(load_expert(self.expert.root), episodes, seed, progress=self.progress)
+        return {"steps": best["steps"], "episodes": episodes, **evaluation}
+
+    def _score(self, policy, episodes: int, seed: int, progress: bool = False) -> dict:
+        """The seed's protocol (random starts, evaluation noise, the run's threshold): mean metrics of ``policy``."""
         config = self.config
         evaluation = evaluate_policy(
-            load_expert(self.expert.root),
+            policy,
             self.snippet,
             EvaluationConfig(
-                episodes=config.final_eval_episodes,
+                episodes=episodes,
                 init="random",
                 min_steps=config.eval_min_steps,
                 action_noise=config.eval_action_noise,
                 termination_threshold=config.termination_threshold,
-                seed=config.seed + FINAL_EVALUATION_SEED_OFFSET,
+                seed=seed,
             ),
             clips=self.clips,
             walker=self.walker,
-            progress=self.progress,
+            progress=progress,
         )
         return {
-            "steps": best["steps"],
-            "episodes": config.final_eval_episodes,
             "normalized_reward": evaluation.normalized_reward,
             "normalized_length": evaluation.normalized_length,
             "episode_return": evaluation.episode_return,
