@@ -78,29 +78,29 @@ def run_dir(out: Path, variant: str, seed: int) -> Path:
     return out / variant / f"seed{seed}"
 
 
-def curves_on_disk(
-    out: Path, variants: list[str], seeds: list[int], snippets: list[str]
-) -> dict[str, list[list[dict]]]:
+def _expert_dirs(out: Path, record: dict):
+    """``(variant, expert directory)`` of every run a sweep record names (found on disk or not)."""
+    for variant in record["variants"]:
+        for seed in record["seeds"]:
+            for snippet in record["snippets"]:
+                yield variant, expert_dir_for(run_dir(out, variant, seed), snippet)
+
+
+def curves_on_disk(out: Path, record: dict) -> dict[str, list[list[dict]]]:
     """Evaluation records of every run found, per variant (one list per seed and snippet)."""
     curves: dict[str, list[list[dict]]] = {}
-    for variant in variants:
-        for seed in seeds:
-            for snippet in snippets:
-                path = expert_dir_for(run_dir(out, variant, seed), snippet).evaluations
-                if path.is_file():
-                    curves.setdefault(variant, []).append(json.loads(path.read_text()))
+    for variant, expert in _expert_dirs(out, record):
+        if expert.evaluations.is_file():
+            curves.setdefault(variant, []).append(json.loads(expert.evaluations.read_text()))
     return curves
 
 
-def final_lengths_on_disk(out: Path, variants: list[str], seeds: list[int], snippets: list[str]) -> dict[str, list]:
+def final_evaluations_on_disk(out: Path, record: dict) -> dict[str, list[dict]]:
     """Per variant, the finished runs' final evaluations (``done.json``; absent without ``final_eval_episodes``)."""
-    finals: dict[str, list] = {}
-    for variant in variants:
-        for seed in seeds:
-            for snippet in snippets:
-                done = expert_dir_for(run_dir(out, variant, seed), snippet).done
-                if done.is_file() and "final_evaluation" in (summary := json.loads(done.read_text())):
-                    finals.setdefault(variant, []).append(summary["final_evaluation"])
+    finals: dict[str, list[dict]] = {}
+    for variant, expert in _expert_dirs(out, record):
+        if expert.done.is_file() and "final_evaluation" in (summary := json.loads(expert.done.read_text())):
+            finals.setdefault(variant, []).append(summary["final_evaluation"])
     return finals
 
 
@@ -231,6 +231,7 @@ def main() -> None:
         subprocess_envs=False,
         torch_threads=1,
     )
+    record = merged_record(args.out / "sweep.json", base, variants, args)
     if not args.replot:
         jobs = []
         for name, changes in variants.items():
@@ -246,18 +247,16 @@ def main() -> None:
                     }
                     done = expert_dir_for(kwargs["out"], snippet).is_done()
                     jobs.append(Job(f"{name}/seed{seed}/{snippet}", train_expert, kwargs, done))
-        write_json(args.out / "sweep.json", merged_record(args.out / "sweep.json", base, variants, args))
+        write_json(args.out / "sweep.json", record)
         reports = run_jobs(jobs, workers=args.jobs, max_attempts=1)
         for report in reports:
             if report.status == "failed":
                 print(f"{report.name} failed:\n{report.error}")
 
-    record = merged_record(args.out / "sweep.json", base, variants, args)
-    curves = curves_on_disk(args.out, list(record["variants"]), record["seeds"], record["snippets"])
+    curves = curves_on_disk(args.out, record)
     if not curves:
         raise SystemExit(f"no evaluations under {args.out} yet")
-    finals = final_lengths_on_disk(args.out, list(record["variants"]), record["seeds"], record["snippets"])
-    summary = summarise(curves, finals)
+    summary = summarise(curves, final_evaluations_on_disk(args.out, record))
     write_json(args.out / "summary.json", {"summary": summary, "curves": curves})
     title = args.title or f"{', '.join(args.snippets)}: {args.steps:,} steps per run"
     plot(curves, title, args.out / "expert_learning.png")

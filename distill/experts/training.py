@@ -85,9 +85,16 @@ def _make_env(tracking: TrackingConfig, seed: int) -> ClipTrackingEnv:
 
 
 def _training_fields(config: ExpertConfig) -> dict:
-    """Settings that must match to resume (not the budget or the machine)."""
-    ignore = {"total_steps", "n_envs", "subprocess_envs", "torch_threads", "device", "eval_at_start"}
-    ignore |= {"final_eval_episodes"}  # read once training has finished
+    """Settings that must match to resume (not the budget, the machine, or what happens after training)."""
+    ignore = {
+        "total_steps",
+        "n_envs",
+        "subprocess_envs",
+        "torch_threads",
+        "device",
+        "eval_at_start",
+        "final_eval_episodes",
+    }
     return {k: v for k, v in asdict(config).items() if k not in ignore}
 
 
