@@ -7,7 +7,8 @@ low-level steps too). Each run is ``transfer train`` in a process of its own,
 ``--jobs`` at a time, in ``OUT/TASK/{decoder,joints}/seedN``: runs resume, and
 finished ones are skipped. At the end it prints the last training return per
 setting (mean and min-max over seeds) and draws the curves with
-``mocap-hierarchy report OUT`` (``OUT/report/transfer_curves.png``).
+``mocap-hierarchy report OUT`` (``OUT/report/transfer_curves.png``). ``--task-set``
+changes the tasks' own settings (e.g. ``max_speed=1.5`` for velocity control).
 
 Usage::
 
@@ -27,6 +28,7 @@ from foundation.config_cli import parse_field_setting
 from hierarchy.pretrained import names_hint, resolve_decoder
 from hierarchy.transfer import train_transfer
 from hierarchy.transfer_config import TransferConfig
+from mocap_hierarchy.commands.transfer import parse_settings
 from mocap_hierarchy.report import build_report
 from mocap_hierarchy.report.figures import transfer_bands
 from mocap_hierarchy.report.sources import find_run_contents
@@ -45,12 +47,20 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     parser.add_argument("--steps", type=int, default=200_000, help="environment steps per run")
     parser.add_argument("--set", nargs="*", default=[], metavar="FIELD=VALUE", help="TransferConfig settings")
+    parser.add_argument(
+        "--task-set",
+        nargs="*",
+        default=[],
+        metavar="FIELD=VALUE",
+        help="task config overrides (JSON values), every task",
+    )
     parser.add_argument("--jobs", type=int, default=0, help="runs at a time (0: one per core)")
     args = parser.parse_args()
     if not resolve_decoder(args.decoder).is_file():
         raise SystemExit(f"--decoder {args.decoder}: no such file ({names_hint()})")
     try:
         settings = dict(parse_field_setting(TransferConfig, s) for s in args.set)
+        task_overrides = parse_settings(args.task_set)
     except ValueError as error:
         raise SystemExit(str(error)) from None
     settings.setdefault("subprocess_envs", False)  # one process per run already
@@ -61,6 +71,7 @@ def main() -> None:
             for mode, decoder in (("decoder", args.decoder), ("joints", None)):
                 folder = run_folder(args.out, task, mode, seed)
                 kwargs = {"task": task, "out": folder, "decoder": decoder, "config": config, "progress": False}
+                kwargs["task_overrides"] = task_overrides
                 jobs.append(
                     Job(f"{task}/{mode}/seed{seed}", train_transfer, kwargs, (folder / "policy.safetensors").is_file())
                 )

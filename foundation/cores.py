@@ -86,6 +86,33 @@ def use_available_cores(threads: int | None = None) -> int:
     return threads
 
 
+def threads_per_worker(workers: int, cores: int | None = None) -> int:
+    """Threads each of ``workers`` processes may use so that together they fit ``cores`` (default: available).
+
+    Two workers that each size their pools to the whole machine oversubscribe it,
+    and OpenMP's threads then wait on each other: measured on 2 cores, two
+    high-level PPO runs side by side stepped 8x slower with 2 threads each than
+    with 1 (``benchmarks/worker_threads.py``).
+    """
+    cores = available_cores() if cores is None else cores
+    return max(1, cores // max(1, workers))
+
+
+def set_thread_pools(threads: int) -> None:
+    """Sizes this process's pools to ``threads``, replacing what it inherited (a pool worker's call).
+
+    Unlike :func:`use_available_cores` it overrides ``OMP_NUM_THREADS`` and
+    ``MKL_NUM_THREADS`` from the parent (for processes this one starts) and resizes
+    torch's pool if torch is imported already.
+    """
+    threads = max(1, threads)
+    for variable in THREAD_VARIABLES:
+        os.environ[variable] = str(threads)
+    torch = sys.modules.get("torch")
+    if torch is not None and hasattr(torch, "set_num_threads"):
+        torch.set_num_threads(threads)
+
+
 def _affinity_cores() -> int:
     if hasattr(os, "sched_getaffinity"):
         return len(os.sched_getaffinity(0))

@@ -6,7 +6,9 @@ skipped (the caller says which are done), a job that raises or whose worker
 dies is retried up to ``max_attempts`` times, and the report lists every
 job's outcome and why an attempt failed: nothing is dropped silently. Locally
 each attempt has a process of its own, so a worker that crashes costs only its
-own job an attempt.
+own job an attempt. Each local worker's thread pools are sized to its share of
+the cores (:func:`foundation.cores.threads_per_worker`), not to the whole
+machine it would otherwise inherit.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from typing import Any, cast
 
 from tqdm.auto import tqdm
 
-from foundation.cores import available_cores
+from foundation.cores import available_cores, set_thread_pools, threads_per_worker
 from foundation.interrupts import stop_requests
 
 
@@ -82,7 +84,8 @@ def run_jobs(
 
     Args:
         jobs: The jobs (names must be unique).
-        workers: Local worker processes; 0 means one per CPU core. Ignored with Ray.
+        workers: Local worker processes; 0 means one per CPU core. Each gets
+            ``cores // workers`` threads (at least 1). Ignored with Ray.
         max_attempts: Attempts per job before it is reported as failed.
         ray_address: Run on this Ray cluster (``auto``, ``ray://host:port``, or
             ``local`` to start a local Ray instance) instead of a process pool.
@@ -120,6 +123,7 @@ def _run_locally(pending: list[Job], reports: dict[str, JobReport], max_attempts
     a dead worker breaks a ``ProcessPoolExecutor`` for every job queued in it.
     """
     context = multiprocessing.get_context("spawn")  # no forked torch/MuJoCo state in workers
+    threads = threads_per_worker(workers)
     waiting = list(pending)
     running: dict[Connection, tuple[Job, BaseProcess]] = {}
     with stop_requests() as stop:
@@ -128,7 +132,9 @@ def _run_locally(pending: list[Job], reports: dict[str, JobReport], max_attempts
                 while waiting and len(running) < workers and not stop.requested:
                     job = waiting.pop(0)
                     receiver, sender = context.Pipe(duplex=False)
-                    process = context.Process(target=_attempt, args=(sender, job.function, job.kwargs), name=job.name)
+                    process = context.Process(
+                        target=_attempt, args=(sender, job.function, job.kwargs, threads), name=job.name
+                    )
                     process.start()
                     sender.close()  # the child holds the only writer: its death reads as end of file
                     running[receiver] = (job, process)
@@ -174,13 +180,14 @@ class _Outcome:
     seconds: float = 0.0
 
 
-def _attempt(sender: Connection, function: Callable[..., Any], kwargs: dict[str, Any]) -> None:
-    """Runs in the worker: calls the job and sends back its result or its traceback.
+def _attempt(sender: Connection, function: Callable[..., Any], kwargs: dict[str, Any], threads: int) -> None:
+    """Runs in the worker: sizes its thread pools, calls the job and sends back its result or its traceback.
 
     Ctrl-C goes to the parent only (it asks the workers to stop with ``SIGTERM``),
     so a worker hears one stop signal, not two.
     """
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    set_thread_pools(threads)
     started = time.perf_counter()
     try:
         outcome = _Outcome(True, function(**kwargs), time.perf_counter() - started)

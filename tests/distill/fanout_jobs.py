@@ -35,3 +35,10 @@ def crash(how):
     if how == "segfault":
         os.kill(os.getpid(), signal.SIGSEGV)
     os._exit(7)
+
+
+def thread_pools():
+    """What this worker's thread pools were sized to: ``OMP_NUM_THREADS`` and torch's pool."""
+    import torch
+
+    return os.environ.get("OMP_NUM_THREADS"), torch.get_num_threads()

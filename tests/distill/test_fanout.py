@@ -67,3 +67,21 @@ def test_a_retried_job_says_why_in_the_table(tmp_path):
 def test_duplicate_names_are_refused():
     with pytest.raises(ValueError, match="unique"):
         run_jobs([Job("a", fanout_jobs.square, {"x": 1}), Job("a", fanout_jobs.square, {"x": 2})], progress=False)
+
+
+def test_each_worker_gets_its_share_of_the_cores_not_the_whole_machine(monkeypatch):
+    # The CLI sets OMP_NUM_THREADS to every core it may use; two workers inheriting that
+    # oversubscribed a 2-core machine and stepped 8x slower (benchmarks/worker_threads.py).
+    monkeypatch.setenv("OMP_NUM_THREADS", "2")
+    jobs = [Job(f"pools{i}", fanout_jobs.thread_pools) for i in range(2)]
+    for report in run_jobs(jobs, workers=2, progress=False):
+        assert report.status == "ok", report.error
+        assert report.result == ("1", 1)
+
+
+def test_threads_per_worker_splits_the_cores():
+    from foundation.cores import threads_per_worker
+
+    assert threads_per_worker(3, cores=8) == 2
+    assert threads_per_worker(4, cores=2) == 1
+    assert threads_per_worker(1, cores=16) == 16
