@@ -1,11 +1,20 @@
-r"""Does a velocity-control policy follow the command? Commanded against actual speed, step by step.
+r"""Does a velocity-control policy follow the command? Commanded against actual velocity, over many episodes.
 
-Runs each policy (``transfer train`` output on ``velocity_control``) deterministically
-for one long episode, reads the commanded velocity and the walker's horizontal
-velocity at every step, and draws both speeds over time (one panel per policy).
-It prints, per policy, the steps survived, the mean absolute speed error, the
-mean cosine between commanded and actual heading while moving, and the reward per
-step (1 = the command followed exactly).
+Runs each policy (``transfer train`` output on ``velocity_control``, with the task
+settings it was trained with) deterministically for ``--episodes`` episodes from
+seeds ``--seed``, ``--seed + 1``, ... and reads the commanded velocity and the
+walker's horizontal velocity at every step. One row of the figure per policy:
+left, the first episode's commanded and actual speed over time; right, one point
+per episode, the mean commanded speed against the mean speed *along the commanded
+direction* (the projection of the actual velocity on the command's unit vector),
+with the line actual = commanded. A policy that ignores the command scatters flat;
+one that follows it lies on the line.
+
+Printed per policy: episodes and mean steps survived; the slope and correlation of
+speed-along-command against commanded speed over the episodes; the mean heading
+cosine while both move; the reward per step; and the reward per step a walker
+standing still would get for the same commands (``exp(-(|v*|/eta)^2)``: the speed
+factor alone), which is what ignoring the command is worth.
 
 Usage::
 
@@ -19,6 +28,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from foundation.config_cli import file_in_folder
 from hierarchy.transfer import POLICY_FILE
@@ -26,7 +36,7 @@ from mocap_hierarchy.record import build_rollout
 
 
 def track(policy_path: Path, steps: int, seed: int) -> dict[str, np.ndarray]:
-    """One deterministic episode: commanded and actual horizontal velocity ``(T, 2)`` and rewards ``(T,)``."""
+    """One deterministic episode: commanded and actual horizontal velocity ``(T, 2)``, rewards ``(T,)``, ``eta``."""
     env, act, _ = build_rollout("velocity_control", str(policy_path), {"max_steps": steps})
     task = env.unwrapped
     observation, _ = env.reset(seed=seed)
@@ -38,20 +48,44 @@ def track(policy_path: Path, steps: int, seed: int) -> dict[str, np.ndarray]:
         actual.append(task.torso_velocity())
         rewards.append(float(reward))
         done = terminated or truncated
-    return {"commanded": np.array(commanded), "actual": np.array(actual), "rewards": np.array(rewards)}
-
-
-def summary(run: dict[str, np.ndarray]) -> dict[str, float]:
-    """Steps, mean absolute speed error, mean heading cosine while both move, reward per step."""
-    commanded, actual = run["commanded"], run["actual"]
-    speed_c, speed_a = np.linalg.norm(commanded, axis=1), np.linalg.norm(actual, axis=1)
-    moving = (speed_c > 0.2) & (speed_a > 0.2)
-    cosine = (commanded * actual).sum(axis=1)[moving] / (speed_c * speed_a)[moving]
     return {
-        "steps": len(speed_c),
-        "speed_error": float(np.abs(speed_c - speed_a).mean()),
-        "heading_cosine": float(cosine.mean()) if moving.any() else float("nan"),
-        "reward_per_step": float(run["rewards"].mean()),
+        "commanded": np.array(commanded),
+        "actual": np.array(actual),
+        "rewards": np.array(rewards),
+        "eta": np.array(task.config.eta),
+    }
+
+
+def along_command(run: dict[str, np.ndarray]) -> np.ndarray:
+    """Per step, the actual velocity's component along the commanded direction (0 where nothing is commanded)."""
+    speed_c = np.linalg.norm(run["commanded"], axis=1)
+    unit = np.divide(
+        run["commanded"], speed_c[:, None], out=np.zeros_like(run["commanded"]), where=speed_c[:, None] > 0
+    )
+    return (run["actual"] * unit).sum(axis=1)
+
+
+def summary(episodes: list[dict[str, np.ndarray]]) -> dict[str, float]:
+    """Steps, speed-following slope and correlation, heading cosine, reward per step, standing still's reward."""
+    commanded_speed = np.array([np.linalg.norm(e["commanded"], axis=1).mean() for e in episodes])
+    speed_along = np.array([along_command(e).mean() for e in episodes])
+    cosines, rewards, still = [], [], []
+    for e in episodes:
+        speed_c, speed_a = np.linalg.norm(e["commanded"], axis=1), np.linalg.norm(e["actual"], axis=1)
+        moving = (speed_c > 0.2) & (speed_a > 0.2)
+        cosines.append((e["commanded"] * e["actual"]).sum(axis=1)[moving] / (speed_c * speed_a)[moving])
+        rewards.append(e["rewards"])
+        still.append(np.exp(-((speed_c / float(e["eta"])) ** 2)))
+    spread = commanded_speed.std() > 0 and speed_along.std() > 0
+    cosine = np.concatenate(cosines)
+    return {
+        "episodes": len(episodes),
+        "steps": float(np.mean([len(e["rewards"]) for e in episodes])),
+        "slope": float(np.polyfit(commanded_speed, speed_along, 1)[0]) if spread else float("nan"),
+        "correlation": float(np.corrcoef(commanded_speed, speed_along)[0, 1]) if spread else float("nan"),
+        "heading_cosine": float(cosine.mean()) if cosine.size else float("nan"),
+        "reward_per_step": float(np.concatenate(rewards).mean()),
+        "still_reward_per_step": float(np.concatenate(still).mean()),
     }
 
 
@@ -60,41 +94,64 @@ def main() -> None:
     parser.add_argument("policies", nargs="+", type=Path, help="policy.safetensors files or transfer folders")
     parser.add_argument("--labels", nargs="+", default=None, help="one label per policy")
     parser.add_argument("--steps", type=int, default=1000, help="episode limit (30 steps per second)")
+    parser.add_argument("--episodes", type=int, default=50, help="episodes per policy (seeds --seed, --seed + 1, ...)")
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--out", type=Path, default=Path("speed_tracking.png"))
     args = parser.parse_args()
     labels = args.labels or [str(p) for p in args.policies]
     if len(labels) != len(args.policies):
         raise SystemExit("give one --labels entry per policy")
-    runs = {
-        label: track(file_in_folder(p, POLICY_FILE), args.steps, args.seed)
-        for label, p in zip(labels, args.policies, strict=True)
-    }
+    if args.episodes < 2:
+        raise SystemExit("--episodes must be at least 2 (a slope needs two points)")
+    runs = {}
+    for label, folder in zip(labels, args.policies, strict=True):
+        path = file_in_folder(folder, POLICY_FILE)
+        seeds = tqdm(range(args.seed, args.seed + args.episodes), desc=label, unit="episode")
+        runs[label] = [track(path, args.steps, seed) for seed in seeds]
 
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    figure, axes = plt.subplots(len(runs), 1, figsize=(9, 2.6 * len(runs)), sharex=True, squeeze=False)
-    print(f"{'policy':<24}{'steps':>7}{'|speed error| m/s':>19}{'heading cosine':>16}{'reward/step':>13}")
-    for axis, (label, run) in zip(axes[:, 0], runs.items(), strict=True):
-        stats = summary(run)
+    figure, axes = plt.subplots(
+        len(runs), 2, figsize=(12, 2.8 * len(runs)), squeeze=False, gridspec_kw={"width_ratios": [1.6, 1]}
+    )
+    print(
+        f"{'policy':<24}{'episodes':>9}{'steps':>7}{'slope':>7}{'corr.':>7}{'heading cos':>12}"
+        f"{'reward/step':>12}{'standing still':>15}"
+    )
+    for (over_time, scatter), (label, episodes) in zip(axes, runs.items(), strict=True):
+        stats = summary(episodes)
         print(
-            f"{label:<24}{stats['steps']:>7}{stats['speed_error']:>19.3f}{stats['heading_cosine']:>16.3f}"
-            f"{stats['reward_per_step']:>13.3f}"
+            f"{label:<24}{stats['episodes']:>9}{stats['steps']:>7.0f}{stats['slope']:>7.2f}{stats['correlation']:>7.2f}"
+            f"{stats['heading_cosine']:>12.2f}{stats['reward_per_step']:>12.3f}{stats['still_reward_per_step']:>15.3f}"
         )
-        seconds = np.arange(len(run["rewards"])) * 0.03
-        axis.plot(seconds, np.linalg.norm(run["commanded"], axis=1), label="commanded speed", color="black")
-        axis.plot(seconds, np.linalg.norm(run["actual"], axis=1), label="actual speed", color="tab:blue")
-        axis.set_ylabel("m/s")
-        axis.set_title(
-            f"{label}: |speed error| {stats['speed_error']:.2f} m/s, heading cosine {stats['heading_cosine']:.2f}, "
-            f"reward/step {stats['reward_per_step']:.2f}",
+        first = episodes[0]
+        seconds = np.arange(len(first["rewards"])) * 0.03
+        over_time.plot(seconds, np.linalg.norm(first["commanded"], axis=1), label="commanded speed", color="black")
+        over_time.plot(seconds, np.linalg.norm(first["actual"], axis=1), label="actual speed", color="tab:blue")
+        over_time.plot(seconds, along_command(first), label="speed along the command", color="tab:orange")
+        over_time.set_ylabel("m/s")
+        over_time.set_xlabel("seconds (first episode; it ends when the walker falls)")
+        over_time.set_title(
+            f"{label}: reward/step {stats['reward_per_step']:.2f} "
+            f"(standing still {stats['still_reward_per_step']:.2f}), {stats['steps']:.0f} steps on average",
             fontsize=9,
         )
-        axis.legend(loc="upper right", fontsize=8)
-    axes[-1, 0].set_xlabel("seconds (episode ends when the walker falls)")
+        over_time.legend(loc="upper right", fontsize=7)
+        commanded_speed = [np.linalg.norm(e["commanded"], axis=1).mean() for e in episodes]
+        speed_along = [along_command(e).mean() for e in episodes]
+        scatter.scatter(commanded_speed, speed_along, s=12, color="tab:orange")
+        top = max(max(commanded_speed), max(speed_along), 0.1)
+        scatter.plot([0, top], [0, top], color="black", linewidth=0.8, label="actual = commanded")
+        scatter.axhline(0, color="grey", linewidth=0.5)
+        scatter.set_xlabel("commanded speed (m/s, episode mean)")
+        scatter.set_ylabel("speed along the command")
+        scatter.set_title(
+            f"{len(episodes)} episodes: slope {stats['slope']:.2f}, r {stats['correlation']:.2f}", fontsize=9
+        )
+        scatter.legend(loc="upper left", fontsize=7)
     figure.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(args.out, dpi=110)

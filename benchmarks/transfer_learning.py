@@ -31,7 +31,7 @@ from hierarchy.transfer_config import TransferConfig
 from mocap_hierarchy.commands.transfer import parse_settings
 from mocap_hierarchy.report import build_report
 from mocap_hierarchy.report.figures import transfer_bands
-from mocap_hierarchy.report.sources import find_run_contents
+from mocap_hierarchy.report.sources import find_run_contents, transfer_label
 
 
 def run_folder(out: Path, task: str, mode: str, seed: int) -> Path:
@@ -87,7 +87,8 @@ def main() -> None:
             f"{band['min'][-1]:>8.2f}{band['max'][-1]:>8.2f}"
         )
     for task in args.tasks:
-        on_decoder, on_joints = bands.get(f"{task} on decoder"), bands.get(f"{task} on joints")
+        on_decoder = bands.get(transfer_label(task, True, task_overrides))
+        on_joints = bands.get(transfer_label(task, False, task_overrides))
         if on_decoder is not None and on_joints is not None:
             print(f"{task}: decoder - joints = {on_decoder['mean'][-1] - on_joints['mean'][-1]:.2f}")
     report = build_report(args.out)

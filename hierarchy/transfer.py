@@ -255,7 +255,8 @@ def _save_policy(
         },
     )
     path = policy.save(out / POLICY_FILE)
-    write_json(out / "transfer.json", {"task": source.name, "decoder": decoder_facts, "config": asdict(config)})
+    summary = {"task": source.name, "task_overrides": source.overrides, "decoder": decoder_facts}
+    write_json(out / "transfer.json", {**summary, "config": asdict(config)})
     return path
 
 

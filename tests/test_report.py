@@ -10,7 +10,7 @@ import pytest
 
 from mocap_hierarchy.cli import main
 from mocap_hierarchy.report import build_report
-from mocap_hierarchy.report.figures import evaluation_pairs, expert_quantiles, transfer_bands
+from mocap_hierarchy.report.figures import evaluation_pairs, expert_quantiles, plot_transfer_curves, transfer_bands
 from mocap_hierarchy.report.sources import find_run_contents
 
 
@@ -24,9 +24,13 @@ def _expert(root: Path, clip: str, start: int, end: int, curve: list[tuple[int, 
         (folder / "done.json").write_text("{}")
 
 
-def _transfer(folder: Path, task: str, decoder: bool, seed: int, curve: list[tuple[int, float]]) -> None:
+def _transfer(
+    folder: Path, task: str, decoder: bool, seed: int, curve: list[tuple[int, float]], overrides: dict | None = None
+) -> None:
     folder.mkdir(parents=True)
     info = {"task": task, "decoder": {"path": "d.safetensors"} if decoder else None, "config": {"seed": seed}}
+    if overrides is not None:
+        info["task_overrides"] = overrides
     (folder / "transfer.json").write_text(json.dumps(info))
     lines = ["time/total_timesteps,time/fps,rollout/ep_rew_mean"]
     lines += [f"{s},100,{r}" for s, r in curve]
@@ -98,6 +102,17 @@ def test_transfer_bands_average_seeds_over_the_steps_all_of_them_reached(run):
     np.testing.assert_allclose(decoder["max"], [3.0, 5.0])
     assert int(decoder["seeds"]) == 2
     np.testing.assert_array_equal(bands["velocity_control on joints"]["steps"], [100, 200, 300])
+
+
+def test_runs_with_other_task_settings_are_a_setting_of_their_own_not_more_seeds(run):
+    _transfer(run / "vc_slow" / "seed0", "velocity_control", True, 0, [(100, 9.0), (200, 11.0)], {"max_speed": 1.5})
+    runs = find_run_contents(run).transfer
+    bands = transfer_bands(runs)
+    assert int(bands["velocity_control on decoder"]["seeds"]) == 2  # unchanged by the new run
+    slow = bands["velocity_control (max_speed=1.5) on decoder"]
+    assert int(slow["seeds"]) == 1 and list(slow["mean"]) == [9.0, 11.0]
+    figure = plot_transfer_curves(runs, run / "curves.png")
+    assert figure.is_file()
 
 
 def test_noisy_and_deterministic_evaluations_pair_by_folder_and_init(run):

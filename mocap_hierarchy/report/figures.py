@@ -179,12 +179,14 @@ def plot_transfer_curves(runs: list[TransferRun], path: Path) -> Path:
     columns = min(len(tasks), 3)
     rows = math.ceil(len(tasks) / columns)
     figure, axes = plt.subplots(rows, columns, figsize=(5.5 * columns, 4 * rows), squeeze=False)
+    task_of = {r.label: r.task for r in runs}
     for axis, task in zip(axes.flat, tasks, strict=False):
         for label, band in bands.items():
-            if not label.startswith(f"{task} on "):
+            if task_of[label] != task:
                 continue
             seeds = int(band["seeds"])
-            (line,) = axis.plot(band["steps"], band["mean"], label=f"{label.split(' on ')[1]} ({seeds} seeds)")
+            setting = label[len(task) :].strip().removeprefix("on ")  # "decoder", or "(max_speed=1.5) on decoder"
+            (line,) = axis.plot(band["steps"], band["mean"], label=f"{setting} ({seeds} seeds)")
             if seeds > 1:
                 axis.fill_between(band["steps"], band["min"], band["max"], color=line.get_color(), alpha=0.2)
         axis.set_title(task)

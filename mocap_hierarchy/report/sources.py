@@ -18,6 +18,7 @@ import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 SKIPPED_FOLDERS = {"checkpoint", "tensorboard", "report", "__pycache__"}
 """Folders never searched: training internals and the report's own output."""
@@ -101,6 +102,7 @@ class TransferRun:
         seed: The run's seed.
         steps: Environment steps at each update.
         returns: Mean training-episode return at each update.
+        task_overrides: The task's settings that differ from its defaults (``transfer.json``).
     """
 
     folder: str
@@ -109,11 +111,18 @@ class TransferRun:
     seed: int
     steps: list[float]
     returns: list[float]
+    task_overrides: dict[str, Any] = field(default_factory=dict)
 
     @property
     def label(self) -> str:
-        """``task on decoder`` or ``task on joints``: runs with the same label are seeds of one setting."""
-        return f"{self.task} on {'decoder' if self.on_decoder else 'joints'}"
+        """Runs with the same label are seeds of one setting (see :func:`transfer_label`)."""
+        return transfer_label(self.task, self.on_decoder, self.task_overrides)
+
+
+def transfer_label(task: str, on_decoder: bool, task_overrides: dict[str, Any] | None = None) -> str:
+    """``task on decoder``, ``task on joints``, or with changed task settings ``task (max_speed=1.5) on decoder``."""
+    settings = ", ".join(f"{k}={v}" for k, v in sorted((task_overrides or {}).items()))
+    return f"{task}{f' ({settings})' if settings else ''} on {'decoder' if on_decoder else 'joints'}"
 
 
 @dataclass
@@ -245,4 +254,5 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
         int(seed),
         steps,
         returns,
+        dict(info.get("task_overrides") or {}),
     )

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 
 import numpy as np
@@ -87,6 +88,7 @@ def test_train_resume_and_evaluate(tmp_path, with_decoder, capsys):
     assert policy.spec.action_high == (3.0 if with_decoder else 1.0)
     assert (policy.spec.decoder is not None) == with_decoder
     assert (out / "progress.csv").is_file() and (out / "checkpoint" / "model.zip").is_file()
+    assert json.loads((out / "transfer.json").read_text())["task_overrides"] == {"max_steps": 30}  # for the report
     # A longer run continues from the saved step instead of starting over.
     longer = dataclasses.replace(TINY, total_steps=192)
     capsys.readouterr()
