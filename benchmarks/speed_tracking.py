@@ -10,7 +10,7 @@ direction* (the projection of the actual velocity on the command's unit vector),
 with the line actual = commanded. A policy that ignores the command scatters flat;
 one that follows it lies on the line.
 
-Printed per policy: episodes and mean steps survived; the slope and correlation of
+Printed per policy: episodes and mean control steps survived; the slope and correlation of
 speed-along-command against commanded speed over the episodes; the mean heading
 cosine while both move; the reward per step; and the reward per step a walker
 standing still would get for the same commands (``exp(-(|v*|/eta)^2)``: the speed
@@ -33,12 +33,19 @@ from tqdm.auto import tqdm
 from foundation.config_cli import file_in_folder
 from hierarchy.transfer import POLICY_FILE
 from mocap_hierarchy.record import build_rollout
+from tasks.walker import CONTROL_TIMESTEP
 
 
 def track(policy_path: Path, steps: int, seed: int) -> dict[str, np.ndarray]:
-    """One deterministic episode: commanded and actual horizontal velocity ``(T, 2)``, rewards ``(T,)``, ``eta``."""
+    """One deterministic episode, read at every high-level step.
+
+    Returns commanded and actual horizontal velocity ``(T, 2)``, the reward per control
+    step ``(T,)`` (a policy holding each latent for ``k`` steps earns ``k`` rewards at
+    once), ``eta`` and ``k``.
+    """
     env, act, _ = build_rollout("velocity_control", str(policy_path), {"max_steps": steps})
     task = env.unwrapped
+    k = getattr(env, "steps_per_latent", 1)
     observation, _ = env.reset(seed=seed)
     commanded, actual, rewards = [], [], []
     done = False
@@ -46,13 +53,14 @@ def track(policy_path: Path, steps: int, seed: int) -> dict[str, np.ndarray]:
         observation, reward, terminated, truncated, _ = env.step(act(observation))
         commanded.append(task.target_velocity.copy())
         actual.append(task.torso_velocity())
-        rewards.append(float(reward))
+        rewards.append(float(reward) / k)
         done = terminated or truncated
     return {
         "commanded": np.array(commanded),
         "actual": np.array(actual),
         "rewards": np.array(rewards),
         "eta": np.array(task.config.eta),
+        "steps_per_latent": np.array(k),
     }
 
 
@@ -80,7 +88,7 @@ def summary(episodes: list[dict[str, np.ndarray]]) -> dict[str, float]:
     cosine = np.concatenate(cosines)
     return {
         "episodes": len(episodes),
-        "steps": float(np.mean([len(e["rewards"]) for e in episodes])),
+        "steps": float(np.mean([len(e["rewards"]) * int(e["steps_per_latent"]) for e in episodes])),
         "slope": float(np.polyfit(commanded_speed, speed_along, 1)[0]) if spread else float("nan"),
         "correlation": float(np.corrcoef(commanded_speed, speed_along)[0, 1]) if spread else float("nan"),
         "heading_cosine": float(cosine.mean()) if cosine.size else float("nan"),
@@ -128,7 +136,7 @@ def main() -> None:
             f"{stats['heading_cosine']:>12.2f}{stats['reward_per_step']:>12.3f}{stats['still_reward_per_step']:>15.3f}"
         )
         first = episodes[0]
-        seconds = np.arange(len(first["rewards"])) * 0.03
+        seconds = np.arange(len(first["rewards"])) * CONTROL_TIMESTEP * int(first["steps_per_latent"])
         over_time.plot(seconds, np.linalg.norm(first["commanded"], axis=1), label="commanded speed", color="black")
         over_time.plot(seconds, np.linalg.norm(first["actual"], axis=1), label="actual speed", color="tab:blue")
         over_time.plot(seconds, along_command(first), label="speed along the command", color="tab:orange")
