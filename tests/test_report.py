@@ -25,10 +25,17 @@ def _expert(root: Path, clip: str, start: int, end: int, curve: list[tuple[int, 
 
 
 def _transfer(
-    folder: Path, task: str, decoder: bool, seed: int, curve: list[tuple[int, float]], overrides: dict | None = None
+    folder: Path,
+    task: str,
+    decoder: bool,
+    seed: int,
+    curve: list[tuple[int, float]],
+    overrides: dict | None = None,
+    config: dict | None = None,
 ) -> None:
     folder.mkdir(parents=True)
-    info = {"task": task, "decoder": {"path": "d.safetensors"} if decoder else None, "config": {"seed": seed}}
+    config = {"seed": seed, **(config or {})}
+    info = {"task": task, "decoder": {"path": "d.safetensors"} if decoder else None, "config": config}
     if overrides is not None:
         info["task_overrides"] = overrides
     (folder / "transfer.json").write_text(json.dumps(info))
@@ -113,6 +120,26 @@ def test_runs_with_other_task_settings_are_a_setting_of_their_own_not_more_seeds
     assert int(slow["seeds"]) == 1 and list(slow["mean"]) == [9.0, 11.0]
     figure = plot_transfer_curves(runs, run / "curves.png")
     assert figure.is_file()
+
+
+def test_runs_with_other_ppo_settings_are_variants_and_their_steps_count_control_steps(tmp_path):
+    base = {"initial_std": None, "steps_per_latent": 1, "total_steps": 200}
+    _transfer(tmp_path / "a" / "seed0", "velocity_control", True, 0, [(100, 1.0), (200, 2.0)], config=base)
+    _transfer(tmp_path / "a" / "seed1", "velocity_control", True, 1, [(100, 3.0), (200, 4.0)], config=base)
+    held = {**base, "steps_per_latent": 5, "total_steps": 40}
+    _transfer(tmp_path / "k5" / "seed0", "velocity_control", True, 0, [(20, 5.0), (40, 6.0)], config=held)
+    _transfer(tmp_path / "joints" / "seed0", "velocity_control", False, 0, [(100, 0.5)], config=held)
+    runs = find_run_contents(tmp_path).transfer
+    bands = transfer_bands(runs)
+    assert set(bands) == {
+        "velocity_control on decoder [steps_per_latent=1]",  # seeds 0 and 1: one setting
+        "velocity_control on decoder [steps_per_latent=5]",
+        "velocity_control on joints",  # alone in its group: no variant
+    }
+    assert int(bands["velocity_control on decoder [steps_per_latent=1]"]["seeds"]) == 2
+    held_band = bands["velocity_control on decoder [steps_per_latent=5]"]
+    np.testing.assert_array_equal(held_band["steps"], [100, 200])  # 20 and 40 latents of 5 control steps
+    assert plot_transfer_curves(runs, tmp_path / "curves.png").is_file()
 
 
 def test_noisy_and_deterministic_evaluations_pair_by_folder_and_init(run):

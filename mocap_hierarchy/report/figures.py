@@ -190,7 +190,7 @@ def plot_transfer_curves(runs: list[TransferRun], path: Path) -> Path:
             if seeds > 1:
                 axis.fill_between(band["steps"], band["min"], band["max"], color=line.get_color(), alpha=0.2)
         axis.set_title(task)
-        axis.set_xlabel("environment steps")
+        axis.set_xlabel("environment (control) steps")
         axis.set_ylabel("mean training-episode return")
         axis.grid(alpha=0.3)
         axis.legend(fontsize=8)

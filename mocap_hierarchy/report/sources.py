@@ -13,6 +13,7 @@ Every reader takes the files the library's commands write and nothing else:
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 import re
@@ -100,9 +101,12 @@ class TransferRun:
         task: Task name (``velocity_control``, ``go_to_target``, ...).
         on_decoder: The policy acts through a decoder (else on joint targets).
         seed: The run's seed.
-        steps: Environment steps at each update.
+        steps: Control steps at each update (high-level steps times ``steps_per_latent``).
         returns: Mean training-episode return at each update.
         task_overrides: The task's settings that differ from its defaults (``transfer.json``).
+        config: The run's PPO settings (``transfer.json``).
+        variant: The PPO settings in which this run differs from others of its task, action
+            space and task settings (set by :func:`find_run_contents`); empty when none.
     """
 
     folder: str
@@ -112,11 +116,14 @@ class TransferRun:
     steps: list[float]
     returns: list[float]
     task_overrides: dict[str, Any] = field(default_factory=dict)
+    config: dict[str, Any] = field(default_factory=dict)
+    variant: str = ""
 
     @property
     def label(self) -> str:
         """Runs with the same label are seeds of one setting (see :func:`transfer_label`)."""
-        return transfer_label(self.task, self.on_decoder, self.task_overrides)
+        label = transfer_label(self.task, self.on_decoder, self.task_overrides)
+        return f"{label} [{self.variant}]" if self.variant else label
 
 
 def transfer_label(task: str, on_decoder: bool, task_overrides: dict[str, Any] | None = None) -> str:
@@ -191,7 +198,28 @@ def find_run_contents(root: str | Path) -> RunContents:
             scores = _multi_clip_from_quickstart(path, data)
             if scores is not None:
                 contents.multi_clip.append(scores)
+    contents.transfer = _with_variants(contents.transfer)
     return contents
+
+
+SAME_SETTING_FIELDS = ("seed", "total_steps", "checkpoint_every", "device", "subprocess_envs")
+"""PPO settings that do not make a run a setting of its own: runs differing only in these are seeds."""
+
+
+def _with_variants(runs: list[TransferRun]) -> list[TransferRun]:
+    """The runs, each naming the PPO settings that differ among runs of its task, action space and task settings."""
+    groups: dict[str, list[TransferRun]] = {}
+    for run in runs:
+        groups.setdefault(transfer_label(run.task, run.on_decoder, run.task_overrides), []).append(run)
+    varying: dict[str, list[str]] = {}
+    for label, group in groups.items():
+        keys = sorted({k for r in group for k in r.config} - set(SAME_SETTING_FIELDS))
+        varying[label] = [k for k in keys if len({json.dumps(r.config.get(k)) for r in group}) > 1]
+    out = []
+    for run in runs:
+        keys = varying[transfer_label(run.task, run.on_decoder, run.task_overrides)]
+        out.append(dataclasses.replace(run, variant=", ".join(f"{k}={run.config.get(k)}" for k in keys)))
+    return out
 
 
 def _pair(row: dict) -> tuple[float, float]:
@@ -243,6 +271,11 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
     if not steps:
         return None
     config = info.get("config", {})
+    if not isinstance(config, dict):
+        config = {}
+    if info.get("decoder"):
+        per_latent = int(config.get("steps_per_latent", 1) or 1)
+        steps = [step * per_latent for step in steps]
     seed = config.get("seed")
     if seed is None:  # a folder named seedN
         match = re.search(r"seed(\d+)", folder.name)
@@ -255,4 +288,5 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
         steps,
         returns,
         dict(info.get("task_overrides") or {}),
+        config,
     )
