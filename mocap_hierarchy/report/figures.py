@@ -178,7 +178,7 @@ def plot_transfer_curves(runs: list[TransferRun], path: Path) -> Path:
     tasks = sorted({r.task for r in runs})
     columns = min(len(tasks), 3)
     rows = math.ceil(len(tasks) / columns)
-    figure, axes = plt.subplots(rows, columns, figsize=(5.5 * columns, 4 * rows), squeeze=False)
+    figure, axes = plt.subplots(rows, columns, figsize=(6 * columns, 5.2 * rows), squeeze=False)
     task_of = {r.label: r.task for r in runs}
     for axis, task in zip(axes.flat, tasks, strict=False):
         for label, band in bands.items():
@@ -193,7 +193,7 @@ def plot_transfer_curves(runs: list[TransferRun], path: Path) -> Path:
         axis.set_xlabel("environment (control) steps")
         axis.set_ylabel("mean training-episode return")
         axis.grid(alpha=0.3)
-        axis.legend(fontsize=8)
+        axis.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.15))  # below: labels can be long
     for axis in list(axes.flat)[len(tasks) :]:
         axis.set_visible(False)
     return _save(figure, path)
