@@ -14,7 +14,8 @@ Printed per policy: episodes and mean control steps survived; the slope and corr
 speed-along-command against commanded speed over the episodes; the mean heading
 cosine while both move; the reward per step; and the reward per step a walker
 standing still would get for the same commands (``exp(-(|v*|/eta)^2)``: the speed
-factor alone), which is what ignoring the command is worth.
+factor alone), which is what ignoring the command is worth. ``--zero-latent DECODER``
+adds a row for the decoder held at z = 0 on the same episodes: no high-level policy.
 
 Usage::
 
@@ -31,19 +32,37 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from foundation.config_cli import file_in_folder
+from hierarchy.task_policy import load_task_policy
 from hierarchy.transfer import POLICY_FILE
 from mocap_hierarchy.record import build_rollout
 from tasks.walker import CONTROL_TIMESTEP
 
 
 def track(policy_path: Path, steps: int, seed: int) -> dict[str, np.ndarray]:
-    """One deterministic episode, read at every high-level step.
+    """One deterministic episode of a task policy (see :func:`episode`)."""
+    env, act, _ = build_rollout("velocity_control", str(policy_path), {"max_steps": steps})
+    return episode(env, act, seed)
+
+
+def track_zero_latent(decoder: str, task_overrides: dict, steps: int, seed: int) -> dict[str, np.ndarray]:
+    """One episode of a decoder held at z = 0: what no high-level policy is worth (see :func:`episode`)."""
+    import tasks
+    from hierarchy import LatentActionEnv, load_decoder
+
+    env = LatentActionEnv(
+        tasks.make("velocity_control", **{**task_overrides, "max_steps": steps}), load_decoder(decoder)
+    )
+    zero = np.zeros(env.action_space.shape)
+    return episode(env, lambda observation: zero, seed)
+
+
+def episode(env, act, seed: int) -> dict[str, np.ndarray]:
+    """One episode, read at every high-level step.
 
     Returns commanded and actual horizontal velocity ``(T, 2)``, the reward per control
     step ``(T,)`` (a policy holding each latent for ``k`` steps earns ``k`` rewards at
     once), ``eta`` and ``k``.
     """
-    env, act, _ = build_rollout("velocity_control", str(policy_path), {"max_steps": steps})
     task = env.unwrapped
     k = getattr(env, "steps_per_latent", 1)
     observation, _ = env.reset(seed=seed)
@@ -105,6 +124,12 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=50, help="episodes per policy (seeds --seed, --seed + 1, ...)")
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--out", type=Path, default=Path("speed_tracking.png"))
+    parser.add_argument(
+        "--zero-latent",
+        metavar="DECODER",
+        default=None,
+        help="also print a reference row: this decoder held at z = 0, with the first policy's task settings",
+    )
     args = parser.parse_args()
     labels = args.labels or [str(p) for p in args.policies]
     if len(labels) != len(args.policies):
@@ -116,6 +141,11 @@ def main() -> None:
         path = file_in_folder(folder, POLICY_FILE)
         seeds = tqdm(range(args.seed, args.seed + args.episodes), desc=label, unit="episode")
         runs[label] = [track(path, args.steps, seed) for seed in seeds]
+    reference = None
+    if args.zero_latent is not None:
+        overrides = load_task_policy(file_in_folder(args.policies[0], POLICY_FILE)).spec.task_overrides
+        seeds = tqdm(range(args.seed, args.seed + args.episodes), desc="z = 0", unit="episode")
+        reference = summary([track_zero_latent(args.zero_latent, overrides, args.steps, seed) for seed in seeds])
 
     import matplotlib
 
@@ -160,6 +190,13 @@ def main() -> None:
             f"{len(episodes)} episodes: slope {stats['slope']:.2f}, r {stats['correlation']:.2f}", fontsize=9
         )
         scatter.legend(loc="upper left", fontsize=7)
+    if reference is not None:
+        label = f"{args.zero_latent}, z = 0"
+        print(
+            f"{label:<24}{reference['episodes']:>9}{reference['steps']:>7.0f}{reference['slope']:>7.2f}"
+            f"{reference['correlation']:>7.2f}{reference['heading_cosine']:>12.2f}"
+            f"{reference['reward_per_step']:>12.3f}{reference['still_reward_per_step']:>15.3f}  (not drawn)"
+        )
     figure.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(args.out, dpi=110)

@@ -80,10 +80,11 @@ def main() -> None:
             print(f"{report.name} failed:\n{report.error}")
 
     bands = transfer_bands(find_run_contents(args.out).transfer)
-    print(f"\n{'task and action space':<34}{'seeds':>6}{'steps':>10}{'last return: mean':>19}{'min':>8}{'max':>8}")
+    width = max([34, *(len(label) + 2 for label in bands)])
+    print(f"\n{'task and action space':<{width}}{'seeds':>6}{'steps':>10}{'last return: mean':>19}{'min':>8}{'max':>8}")
     for label, band in bands.items():
         print(
-            f"{label:<34}{int(band['seeds']):>6}{band['steps'][-1]:>10,.0f}{band['mean'][-1]:>19.2f}"
+            f"{label:<{width}}{int(band['seeds']):>6}{band['steps'][-1]:>10,.0f}{band['mean'][-1]:>19.2f}"
             f"{band['min'][-1]:>8.2f}{band['max'][-1]:>8.2f}"
         )
     for task in args.tasks:
