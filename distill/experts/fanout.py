@@ -85,7 +85,7 @@ def run_jobs(
     Args:
         jobs: The jobs (names must be unique).
         workers: Local worker processes; 0 means one per CPU core. Each gets
-            ``cores // workers`` threads (at least 1). Ignored with Ray.
+            ``cores // min(workers, jobs to run)`` threads (at least 1). Ignored with Ray.
         max_attempts: Attempts per job before it is reported as failed.
         ray_address: Run on this Ray cluster (``auto``, ``ray://host:port``, or
             ``local`` to start a local Ray instance) instead of a process pool.
@@ -123,7 +123,7 @@ def _run_locally(pending: list[Job], reports: dict[str, JobReport], max_attempts
     a dead worker breaks a ``ProcessPoolExecutor`` for every job queued in it.
     """
     context = multiprocessing.get_context("spawn")  # no forked torch/MuJoCo state in workers
-    threads = threads_per_worker(workers)
+    threads = threads_per_worker(min(workers, max(1, len(pending))))  # fewer jobs than workers: more threads each
     waiting = list(pending)
     running: dict[Connection, tuple[Job, BaseProcess]] = {}
     with stop_requests() as stop:
