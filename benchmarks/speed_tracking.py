@@ -92,10 +92,15 @@ def along_command(run: dict[str, np.ndarray]) -> np.ndarray:
     return (run["actual"] * unit).sum(axis=1)
 
 
+def episode_points(episodes: list[dict[str, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """One point per episode: mean commanded speed and mean speed along the command."""
+    commanded_speed = np.array([np.linalg.norm(e["commanded"], axis=1).mean() for e in episodes])
+    return commanded_speed, np.array([along_command(e).mean() for e in episodes])
+
+
 def summary(episodes: list[dict[str, np.ndarray]]) -> dict[str, float]:
     """Steps, speed-following slope and correlation, heading cosine, reward per step, standing still's reward."""
-    commanded_speed = np.array([np.linalg.norm(e["commanded"], axis=1).mean() for e in episodes])
-    speed_along = np.array([along_command(e).mean() for e in episodes])
+    commanded_speed, speed_along = episode_points(episodes)
     cosines, rewards, still = [], [], []
     for e in episodes:
         speed_c, speed_a = np.linalg.norm(e["commanded"], axis=1), np.linalg.norm(e["actual"], axis=1)
@@ -114,6 +119,14 @@ def summary(episodes: list[dict[str, np.ndarray]]) -> dict[str, float]:
         "reward_per_step": float(np.concatenate(rewards).mean()),
         "still_reward_per_step": float(np.concatenate(still).mean()),
     }
+
+
+def table_row(label: str, stats: dict[str, float]) -> str:
+    """One printed line of :func:`summary`'s figures, under the header ``main`` prints."""
+    return (
+        f"{label:<24}{stats['episodes']:>9}{stats['steps']:>7.0f}{stats['slope']:>7.2f}{stats['correlation']:>7.2f}"
+        f"{stats['heading_cosine']:>12.2f}{stats['reward_per_step']:>12.3f}{stats['still_reward_per_step']:>15.3f}"
+    )
 
 
 def main() -> None:
@@ -136,16 +149,16 @@ def main() -> None:
         raise SystemExit("give one --labels entry per policy")
     if args.episodes < 2:
         raise SystemExit("--episodes must be at least 2 (a slope needs two points)")
+    seeds = range(args.seed, args.seed + args.episodes)
     runs = {}
     for label, folder in zip(labels, args.policies, strict=True):
         path = file_in_folder(folder, POLICY_FILE)
-        seeds = tqdm(range(args.seed, args.seed + args.episodes), desc=label, unit="episode")
-        runs[label] = [track(path, args.steps, seed) for seed in seeds]
+        runs[label] = [track(path, args.steps, seed) for seed in tqdm(seeds, desc=label, unit="episode")]
     reference = None
     if args.zero_latent is not None:
         overrides = load_task_policy(file_in_folder(args.policies[0], POLICY_FILE)).spec.task_overrides
-        seeds = tqdm(range(args.seed, args.seed + args.episodes), desc="z = 0", unit="episode")
-        reference = summary([track_zero_latent(args.zero_latent, overrides, args.steps, seed) for seed in seeds])
+        bar = tqdm(seeds, desc="z = 0", unit="episode")
+        reference = summary([track_zero_latent(args.zero_latent, overrides, args.steps, seed) for seed in bar])
 
     import matplotlib
 
@@ -161,10 +174,7 @@ def main() -> None:
     )
     for (over_time, scatter), (label, episodes) in zip(axes, runs.items(), strict=True):
         stats = summary(episodes)
-        print(
-            f"{label:<24}{stats['episodes']:>9}{stats['steps']:>7.0f}{stats['slope']:>7.2f}{stats['correlation']:>7.2f}"
-            f"{stats['heading_cosine']:>12.2f}{stats['reward_per_step']:>12.3f}{stats['still_reward_per_step']:>15.3f}"
-        )
+        print(table_row(label, stats))
         first = episodes[0]
         seconds = np.arange(len(first["rewards"])) * CONTROL_TIMESTEP * int(first["steps_per_latent"])
         over_time.plot(seconds, np.linalg.norm(first["commanded"], axis=1), label="commanded speed", color="black")
@@ -178,10 +188,9 @@ def main() -> None:
             fontsize=9,
         )
         over_time.legend(loc="upper right", fontsize=7)
-        commanded_speed = [np.linalg.norm(e["commanded"], axis=1).mean() for e in episodes]
-        speed_along = [along_command(e).mean() for e in episodes]
+        commanded_speed, speed_along = episode_points(episodes)
         scatter.scatter(commanded_speed, speed_along, s=12, color="tab:orange")
-        top = max(max(commanded_speed), max(speed_along), 0.1)
+        top = max(commanded_speed.max(), speed_along.max(), 0.1)
         scatter.plot([0, top], [0, top], color="black", linewidth=0.8, label="actual = commanded")
         scatter.axhline(0, color="grey", linewidth=0.5)
         scatter.set_xlabel("commanded speed (m/s, episode mean)")
@@ -191,12 +200,7 @@ def main() -> None:
         )
         scatter.legend(loc="upper left", fontsize=7)
     if reference is not None:
-        label = f"{args.zero_latent}, z = 0"
-        print(
-            f"{label:<24}{reference['episodes']:>9}{reference['steps']:>7.0f}{reference['slope']:>7.2f}"
-            f"{reference['correlation']:>7.2f}{reference['heading_cosine']:>12.2f}"
-            f"{reference['reward_per_step']:>12.3f}{reference['still_reward_per_step']:>15.3f}  (not drawn)"
-        )
+        print(table_row(f"{args.zero_latent}, z = 0", reference) + "  (not drawn)")
     figure.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(args.out, dpi=110)

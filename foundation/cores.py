@@ -91,8 +91,8 @@ def threads_per_worker(workers: int, cores: int | None = None) -> int:
 
     Two workers that each size their pools to the whole machine oversubscribe it,
     and OpenMP's threads then wait on each other: measured on 2 cores, two
-    high-level PPO runs side by side stepped 8x slower with 2 threads each than
-    with 1 (``benchmarks/worker_threads.py``).
+    high-level PPO runs side by side stepped 6.2x slower with 2 threads each than
+    with 1 (``benchmarks/worker_threads.py``, median of two trials).
     """
     cores = available_cores() if cores is None else cores
     return max(1, cores // max(1, workers))

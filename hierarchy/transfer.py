@@ -38,7 +38,10 @@ from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
 from hierarchy.pretrained import pretrained_name, resolve_decoder
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
-from hierarchy.transfer_config import TransferConfig  # defined there (light), used and re-exported here
+from hierarchy.transfer_config import (
+    RESUME_FREE_FIELDS,
+    TransferConfig,
+)  # defined there (light), used and re-exported here
 from tasks import registry
 
 POLICY_FILE = "policy.safetensors"
@@ -210,7 +213,7 @@ def _resume_settings(source: TaskSource, decoder_sha: str | None, config: Transf
         "task": source.name,
         "overrides": source.overrides,
         "decoder": decoder_sha,
-        "config": {k: v for k, v in asdict(config).items() if k not in _RESUME_FREE},
+        "config": {k: v for k, v in asdict(config).items() if k not in RESUME_FREE_FIELDS},
     }
 
 
@@ -258,10 +261,6 @@ def _save_policy(
     summary = {"task": source.name, "task_overrides": source.overrides, "decoder": decoder_facts}
     write_json(out / "transfer.json", {**summary, "config": asdict(config)})
     return path
-
-
-_RESUME_FREE = ("total_steps", "checkpoint_every", "device", "subprocess_envs")
-"""Settings a resumed run may change (a longer budget, other checkpointing or hardware)."""
 
 
 def _check_resume_settings(checkpoint: Path, settings: dict[str, Any]) -> None:

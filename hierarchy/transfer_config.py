@@ -7,6 +7,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+RESUME_FREE_FIELDS = ("total_steps", "checkpoint_every", "device", "subprocess_envs")
+"""Settings a resumed run may change (a longer budget, other checkpointing or hardware); the report
+also treats runs differing only in these (and the seed) as one setting."""
+
 
 @dataclass(frozen=True)
 class TransferConfig:

@@ -179,13 +179,13 @@ def plot_transfer_curves(runs: list[TransferRun], path: Path) -> Path:
     columns = min(len(tasks), 3)
     rows = math.ceil(len(tasks) / columns)
     figure, axes = plt.subplots(rows, columns, figsize=(6 * columns, 5.2 * rows), squeeze=False)
-    task_of = {r.label: r.task for r in runs}
+    run_of = {r.label: r for r in runs}
     for axis, task in zip(axes.flat, tasks, strict=False):
         for label, band in bands.items():
-            if task_of[label] != task:
+            if run_of[label].task != task:
                 continue
             seeds = int(band["seeds"])
-            setting = label[len(task) :].strip().removeprefix("on ")  # "decoder", or "(max_speed=1.5) on decoder"
+            setting = run_of[label].setting.removeprefix("on ")  # "decoder", or "(max_speed=1.5) on decoder"
             (line,) = axis.plot(band["steps"], band["mean"], label=f"{setting} ({seeds} seeds)")
             if seeds > 1:
                 axis.fill_between(band["steps"], band["min"], band["max"], color=line.get_color(), alpha=0.2)

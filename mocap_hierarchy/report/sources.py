@@ -13,13 +13,14 @@ Every reader takes the files the library's commands write and nothing else:
 from __future__ import annotations
 
 import csv
-import dataclasses
 import json
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
+
+from hierarchy.transfer_config import RESUME_FREE_FIELDS
 
 SKIPPED_FOLDERS = {"checkpoint", "tensorboard", "report", "__pycache__"}
 """Folders never searched: training internals and the report's own output."""
@@ -121,9 +122,14 @@ class TransferRun:
 
     @property
     def label(self) -> str:
-        """Runs with the same label are seeds of one setting (see :func:`transfer_label`)."""
-        label = transfer_label(self.task, self.on_decoder, self.task_overrides)
-        return f"{label} [{self.variant}]" if self.variant else label
+        """``task`` and :attr:`setting`: runs with the same label are seeds of one setting."""
+        return f"{self.task} {self.setting}"
+
+    @property
+    def setting(self) -> str:
+        """The label without the task: ``on decoder``, ``(max_speed=1.5) on joints [initial_std=1.0]``."""
+        setting = transfer_label(self.task, self.on_decoder, self.task_overrides).removeprefix(f"{self.task} ")
+        return f"{setting} [{self.variant}]" if self.variant else setting
 
 
 def transfer_label(task: str, on_decoder: bool, task_overrides: dict[str, Any] | None = None) -> str:
@@ -202,24 +208,24 @@ def find_run_contents(root: str | Path) -> RunContents:
     return contents
 
 
-SAME_SETTING_FIELDS = ("seed", "total_steps", "checkpoint_every", "device", "subprocess_envs")
+SAME_SETTING_FIELDS = ("seed", *RESUME_FREE_FIELDS)
 """PPO settings that do not make a run a setting of its own: runs differing only in these are seeds."""
 
 
 def _with_variants(runs: list[TransferRun]) -> list[TransferRun]:
     """The runs, each naming the PPO settings that differ among runs of its task, action space and task settings."""
-    groups: dict[str, list[TransferRun]] = {}
-    for run in runs:
-        groups.setdefault(transfer_label(run.task, run.on_decoder, run.task_overrides), []).append(run)
-    varying: dict[str, list[str]] = {}
-    for label, group in groups.items():
-        keys = sorted({k for r in group for k in r.config} - set(SAME_SETTING_FIELDS))
-        varying[label] = [k for k in keys if len({json.dumps(r.config.get(k)) for r in group}) > 1]
-    out = []
-    for run in runs:
-        keys = varying[transfer_label(run.task, run.on_decoder, run.task_overrides)]
-        out.append(dataclasses.replace(run, variant=", ".join(f"{k}={run.config.get(k)}" for k in keys)))
-    return out
+    groups = [transfer_label(run.task, run.on_decoder, run.task_overrides) for run in runs]
+    members: dict[str, list[TransferRun]] = {}
+    for group, run in zip(groups, runs, strict=True):
+        members.setdefault(group, []).append(run)
+    varying = {}
+    for group, same in members.items():
+        keys = sorted({k for r in same for k in r.config} - set(SAME_SETTING_FIELDS))
+        varying[group] = [k for k in keys if len({json.dumps(r.config.get(k)) for r in same}) > 1]
+    return [
+        replace(run, variant=", ".join(f"{k}={run.config.get(k)}" for k in varying[group]))
+        for group, run in zip(groups, runs, strict=True)
+    ]
 
 
 def _pair(row: dict) -> tuple[float, float]:
