@@ -15,6 +15,7 @@ from __future__ import annotations
 import errno
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -50,6 +51,15 @@ def decoder_file(rollout_dir, tmp_path_factory) -> Path:
     return out / "decoder.safetensors"
 
 
+def furthest_step_shown(log: str, total: int) -> int:
+    """The furthest step a progress bar over ``total`` steps reached in ``log`` (0 if none).
+
+    A kill that lands before the first checkpoint (a loaded machine runs slower than the
+    reference did) leaves nothing to resume from, and the next run rightly starts at 0.
+    """
+    return max((int(step) for step in re.findall(rf"(\d+)/{total} \[", log)), default=0)
+
+
 def distill_args(rollout_dir: Path, steps: int = 400):
     def args(out: Path) -> list[str]:
         return [
@@ -71,8 +81,9 @@ def test_distill_train_killed_twice_resumes_and_finishes(rollout_dir, tmp_path):
     history = json.loads((out / "history.json").read_text())
     assert history["step"][-1] == 400 and load_decoder(out / "decoder.safetensors").spec.latent_size == 4
     assert set(report.outputs) == set(digests(tmp_path / "reference"))  # the same files, complete
-    if report.kills:
-        assert "resuming" in report.log  # from the checkpoint, not from step 0
+    killed_runs_log = (tmp_path / "trial" / "runs.log").read_text(errors="replace")
+    if furthest_step_shown(killed_runs_log, 400) >= 40:  # a killed run got past a checkpoint (every 20 steps)
+        assert "resuming" in report.log  # so a later run starts from it, not from step 0
     publish(report)
 
 
