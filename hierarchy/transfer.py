@@ -38,10 +38,7 @@ from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
 from hierarchy.pretrained import pretrained_name, resolve_decoder
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
-from hierarchy.transfer_config import (
-    RESUME_FREE_FIELDS,
-    TransferConfig,
-)  # defined there (light), used and re-exported here
+from hierarchy.transfer_config import RESUME_FREE_FIELDS, TransferConfig  # light module; re-exported here
 from tasks import registry
 
 POLICY_FILE = "policy.safetensors"

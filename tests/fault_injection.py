@@ -134,7 +134,8 @@ class KillReport:
         redone: Finished units (``unit_pattern`` files) written again by a later run (must be none).
         units: Finished units at the end.
         outputs: Digests of the outputs at the end.
-        log: The combined output of every run.
+        killed_log: The combined output of the killed runs.
+        log: The combined output of every run (``killed_log`` and the finishing run's).
     """
 
     job: str
@@ -147,6 +148,7 @@ class KillReport:
     redone: list[str] = field(default_factory=list)
     units: int = 0
     outputs: dict[str, str] = field(default_factory=dict)
+    killed_log: str = ""
     log: str = ""
 
     def row(self, identical: bool) -> str:
@@ -214,8 +216,8 @@ def kill_and_resume(
     report.temporaries_at_end = temporaries(out)
     report.units = len(stamps(out, unit_pattern)) if unit_pattern else 0
     report.outputs = digests(out)
-    report.log = log.read_text(errors="replace") if log.exists() else ""
-    report.log += output
+    report.killed_log = log.read_text(errors="replace") if log.exists() else ""
+    report.log = report.killed_log + output
     return report
 
 
