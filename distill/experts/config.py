@@ -35,7 +35,14 @@ class ExpertConfig:
         desired_kl: KL divergence per update the ``adaptive`` schedule aims at.
         hidden_layers: Hidden layer sizes of the policy and of the value network.
         action_std: Standard deviation of the Gaussian policy (the experts' action noise); fixed,
-            or the start value when ``learn_action_std`` is set.
+            or the start value when ``learn_action_std`` is set. With ``action_std_steps``, the noise
+            until the first of them.
+        action_std_steps: The environment steps at which the fixed training noise moves on to the next
+            of ``later_action_stds`` (increasing; e.g. ``2000000`` with ``later_action_stds`` ``0.2``
+            and ``action_std`` ``0.3``); empty: one noise for the whole run.
+        later_action_stds: The fixed training noise from each of ``action_std_steps`` on (as many as
+            those steps). Evaluations keep ``eval_action_noise``; a saved expert records the noise
+            it was trained with at that point.
         learn_action_std: Learn the policy's standard deviation (state-independent, per joint) from
             ``action_std`` on, instead of keeping it fixed (the seed fixes it).
         residual_actions: Policy outputs offsets from the reference's next pose instead of
@@ -88,6 +95,8 @@ class ExpertConfig:
     desired_kl: float = 0.01
     hidden_layers: tuple[int, ...] = (1024, 1024, 1024)
     action_std: float = 0.1
+    action_std_steps: tuple[int, ...] = ()
+    later_action_stds: tuple[float, ...] = ()
     learn_action_std: bool = False
     residual_actions: bool = False
     reference_observations: bool = False
@@ -118,6 +127,11 @@ class ExpertConfig:
             return self.termination_threshold
         done = min(steps / self.termination_curriculum_steps, 1.0)
         return self.termination_start + (self.termination_threshold - self.termination_start) * done
+
+    def action_std_at(self, steps: int) -> float:
+        """The fixed training noise at environment step ``steps`` (``action_std``, then ``later_action_stds``)."""
+        passed = sum(steps >= s for s in self.action_std_steps)
+        return self.later_action_stds[passed - 1] if passed else self.action_std
 
     def resolved_envs(self) -> int:
         """Number of environments: ``n_envs``, or as many as CPU cores that divide ``steps_per_update``."""
@@ -160,10 +174,25 @@ class ExpertConfig:
             )
         if self.action_std <= 0:
             raise ValueError("action_std must be positive")
+        self._validate_noise_schedule()
         if self.eval_every < 1 or self.eval_episodes < 1 or self.checkpoint_every < 1:
             raise ValueError("eval_every, eval_episodes and checkpoint_every must be positive")
         if self.final_eval_episodes < 0:
             raise ValueError("final_eval_episodes must be 0 (none) or positive")
+
+    def _validate_noise_schedule(self) -> None:
+        steps, stds = self.action_std_steps, self.later_action_stds
+        if len(steps) != len(stds):
+            raise ValueError(
+                f"action_std_steps {steps} and later_action_stds {stds} must be as many "
+                "(each step names where the next noise starts)"
+            )
+        if steps and (list(steps) != sorted(set(steps)) or steps[0] <= 0):
+            raise ValueError(f"action_std_steps {steps} must be positive and increasing")
+        if stds and min(stds) <= 0:
+            raise ValueError(f"later_action_stds {stds} must be positive")
+        if steps and self.learn_action_std:
+            raise ValueError("a noise schedule (action_std_steps) fixes the noise; it cannot go with learn_action_std")
 
 
 FAST_PROFILE_CHANGES: dict[str, Any] = {

@@ -142,6 +142,10 @@ class _ExpertCallback(BaseCallback):
 
     def _on_rollout_start(self) -> None:
         config = self.trainer.config
+        if config.action_std_steps:
+            std = config.action_std_at(self.num_timesteps)
+            _set_fixed_noise(self.model, std)
+            self.logger.record("train/action_std", std)
         if config.termination_curriculum_steps:
             threshold = config.training_threshold(self.num_timesteps)
             self.model.get_env().env_method("set_termination_threshold", threshold)
@@ -210,7 +214,7 @@ class _Trainer:
         return state.get("wall_seconds_before", 0.0) + time.perf_counter() - self.started
 
     def _policy(self, model: PPO, venv: VecNormalize, steps: int):
-        std = self.config.action_std
+        std = self.config.action_std_at(steps)
         if self.config.learn_action_std:
             std = float(model.policy.log_std.detach().exp().mean())
         return policy_from_sb3(
@@ -474,8 +478,7 @@ def _branch(expert: ExpertDir, vec_env, config: ExpertConfig, settings: PpoSetti
     )
     model.get_vec_normalize_env().gamma = config.gamma
     if not config.learn_action_std:
-        with torch.no_grad():
-            model.policy.log_std.fill_(float(np.log(config.action_std)))
+        _set_fixed_noise(model, config.action_std_at(int(model.num_timesteps)))
     source_state = json.loads(source.checkpoint_state.read_text())
     steps = int(model.num_timesteps)
     evaluations = [{**e, "branched_from": str(source.root)} for e in source_state["evaluations"]]
@@ -484,6 +487,12 @@ def _branch(expert: ExpertDir, vec_env, config: ExpertConfig, settings: PpoSetti
     state = _fresh_state(steps, config)
     state.update(evaluations=evaluations, wall_seconds_before=source_state.get("wall_seconds_before", 0.0))
     return model, state
+
+
+def _set_fixed_noise(model: PPO, std: float) -> None:
+    """Sets the policy's (fixed) standard deviation to ``std`` for every joint."""
+    with torch.no_grad():
+        model.policy.log_std.fill_(float(np.log(std)))
 
 
 def _fresh_state(steps: int, config: ExpertConfig) -> dict:

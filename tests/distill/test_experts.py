@@ -153,6 +153,52 @@ def test_a_resumed_piecewise_schedule_switches_at_the_same_step_as_an_uninterrup
     assert {step: straight[step] for step in resumed} == resumed
 
 
+def _logged_noise(expert: ExpertDir) -> dict[int, float]:
+    """SB3's ``train/std`` (the policy's noise in each update) per ``time/total_timesteps`` row."""
+    with expert.progress.open() as handle:
+        rows = list(csv.DictReader(handle))
+    return {int(r["time/total_timesteps"]): float(r["train/std"]) for r in rows if r["train/std"]}
+
+
+def test_a_noise_schedule_drops_the_training_noise_at_its_step_also_across_a_resume(
+    clip_library, tmp_path, monkeypatch, snippet, tiny
+):
+    config = dataclasses.replace(
+        tiny, total_steps=2560, action_std=0.3, action_std_steps=(1536,), later_action_stds=(0.2,)
+    )
+    train_expert(snippet, tmp_path / "straight", config, progress=False)
+    straight = _logged_noise(ExpertDir(tmp_path / "straight" / snippet))
+    # Each row logs the update before the rollout it ends: the one at 2560 trained on steps 1536-2048.
+    assert straight == pytest.approx({1024: 0.3, 1536: 0.3, 2048: 0.3, 2560: 0.2})
+
+    killed = _interrupted_run(tmp_path / "killed", snippet, config, monkeypatch)  # resumes from step 512
+    train_expert(snippet, tmp_path / "killed", config, progress=False)
+    resumed = _logged_noise(killed)
+    assert resumed.keys() >= {2048, 2560}
+    assert resumed == pytest.approx({step: straight[step] for step in resumed})
+
+
+def test_noise_schedule_values_and_checks():
+    config = ExpertConfig(action_std=0.3, action_std_steps=(2_000_000, 2_500_000), later_action_stds=(0.2, 0.15))
+    config.validate()
+    assert [config.action_std_at(s) for s in (0, 1_999_999, 2_000_000, 2_499_999, 3_000_000)] == [
+        0.3,
+        0.3,
+        0.2,
+        0.2,
+        0.15,
+    ]
+    assert ExpertConfig(action_std=0.3).action_std_at(5_000_000) == 0.3
+    with pytest.raises(ValueError, match="as many"):
+        ExpertConfig(action_std_steps=(5,), later_action_stds=()).validate()
+    with pytest.raises(ValueError, match="increasing"):
+        ExpertConfig(action_std_steps=(6, 5), later_action_stds=(0.2, 0.1)).validate()
+    with pytest.raises(ValueError, match="positive"):
+        ExpertConfig(action_std_steps=(5,), later_action_stds=(0.0,)).validate()
+    with pytest.raises(ValueError, match="learn_action_std"):
+        ExpertConfig(action_std_steps=(5,), later_action_stds=(0.2,), learn_action_std=True).validate()
+
+
 def test_a_branch_continues_another_runs_checkpoint_with_its_own_settings(
     clip_library, tmp_path, monkeypatch, snippet, tiny
 ):
