@@ -233,6 +233,24 @@ def test_a_branch_continues_another_runs_checkpoint_with_its_own_settings(
     assert source.checkpoint_state.is_file()  # the source is left as it was: it can still resume
 
 
+def test_a_branch_starts_with_its_noise_schedules_value_at_the_sources_step(
+    clip_library, tmp_path, monkeypatch, snippet, tiny
+):
+    config = dataclasses.replace(tiny, total_steps=1536, action_std=0.3)
+    source = _interrupted_run(tmp_path / "source", snippet, config, monkeypatch)  # checkpoint at step 512
+    branch = dataclasses.replace(
+        config, action_std_steps=(256, 1024), later_action_stds=(0.2, 0.1), branch_from=str(tmp_path / "source")
+    )
+    vec_env = _vec_env(training_task((snippet,), str(clip_library), branch), branch)
+    started = ExpertDir(tmp_path / "peek" / snippet)
+    started.root.mkdir(parents=True)
+    model, _, _ = _resume_or_build(started, vec_env, None, branch)
+    source_std = PPO.load(source.checkpoint_model, device="cpu").policy.log_std.detach().exp()
+    assert torch.allclose(source_std, torch.tensor(0.3))
+    assert torch.allclose(model.policy.log_std.exp(), torch.tensor(0.2))  # 0.2 from 256 on, 0.1 from 1024
+    vec_env.close()
+
+
 def test_a_branch_needs_a_checkpoint_and_the_sources_networks(clip_library, tmp_path, monkeypatch, snippet, tiny):
     config = dataclasses.replace(tiny, total_steps=1536)
     with pytest.raises(ExpertFilesError, match="no checkpoint to branch from"):
