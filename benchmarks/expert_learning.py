@@ -8,8 +8,9 @@ seed's protocol (random starts excluding the last 30 frames, action noise 0.1)
 every ``--eval-every`` steps. The tool prints, per variant, the steps and wall
 time to a normalised episode length of 0.5 and 0.9, and plots the curves
 against environment steps and wall time (mean over seeds and snippets, band:
-min to max). Runs resume: rerunning the same command (or one with only some of
-its variants) continues unfinished experts and skips finished ones; ``sweep.json``
+min to max; ``--replot --snippets S`` draws one snippet's). Runs resume:
+rerunning the same command (or one with only some of its variants) continues
+unfinished experts and skips finished ones; ``sweep.json``
 keeps every variant the folder has seen, and the plot and ``--replot`` draw them
 all from what is on disk (also while a sweep is still running).
 
@@ -204,7 +205,13 @@ def print_table(summary: dict[str, dict]) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="sweep folder (VARIANT/seedN/SNIPPET/ inside)")
-    parser.add_argument("--snippets", nargs="+", default=["SYN_walk_slow-0-182"])
+    parser.add_argument(
+        "--snippets",
+        nargs="+",
+        default=None,
+        help="snippets to train (default: SYN_walk_slow-0-182); with --replot, draw only these "
+        "(into expert_learning-SNIPPET.png and summary-SNIPPET.json)",
+    )
     parser.add_argument("--steps", type=int, default=300_000, help="environment steps per run")
     parser.add_argument("--eval-every", type=int, default=25_000)
     parser.add_argument("--eval-episodes", type=int, default=50)
@@ -220,6 +227,8 @@ def main() -> None:
     parser.add_argument("--title", default=None)
     parser.add_argument("--replot", action="store_true", help="only redraw from what OUT holds")
     args = parser.parse_args()
+    only = args.snippets if args.replot else None
+    args.snippets = args.snippets or ["SYN_walk_slow-0-182"]
 
     variants = dict(parse_variant(v) for v in (args.variant or ["baseline"]))
     base = dict(parse_setting(s) for s in args.base)
@@ -253,15 +262,18 @@ def main() -> None:
             if report.status == "failed":
                 print(f"{report.name} failed:\n{report.error}")
 
+    suffix = f"-{'+'.join(only)}" if only else ""
+    if only:
+        record = {**record, "snippets": only}
     curves = curves_on_disk(args.out, record)
     if not curves:
         raise SystemExit(f"no evaluations under {args.out} yet")
     summary = summarise(curves, final_evaluations_on_disk(args.out, record))
-    write_json(args.out / "summary.json", {"summary": summary, "curves": curves})
-    title = args.title or f"{', '.join(args.snippets)}: {args.steps:,} steps per run"
-    plot(curves, title, args.out / "expert_learning.png")
+    write_json(args.out / f"summary{suffix}.json", {"summary": summary, "curves": curves})
+    title = args.title or f"{', '.join(record['snippets'])}: {args.steps:,} steps per run"
+    plot(curves, title, args.out / f"expert_learning{suffix}.png")
     print_table(summary)
-    print(f"\nplot: {args.out / 'expert_learning.png'}")
+    print(f"\nplot: {args.out / f'expert_learning{suffix}.png'}")
 
 
 if __name__ == "__main__":
