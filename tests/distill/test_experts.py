@@ -128,11 +128,11 @@ def _interrupted_run(out: Path, snippet: str, config: ExpertConfig, monkeypatch)
     return ExpertDir(out / snippet)
 
 
-def _logged_learning_rates(expert: ExpertDir) -> dict[int, float]:
-    """``train/learning_rate`` per ``time/total_timesteps`` row of an expert's progress.csv."""
+def _logged(expert: ExpertDir, column: str) -> dict[int, float]:
+    """``column`` (e.g. ``train/learning_rate``) per ``time/total_timesteps`` row of an expert's progress.csv."""
     with expert.progress.open() as handle:
         rows = list(csv.DictReader(handle))
-    return {int(r["time/total_timesteps"]): float(r["train/learning_rate"]) for r in rows if r["train/learning_rate"]}
+    return {int(r["time/total_timesteps"]): float(r[column]) for r in rows if r[column]}
 
 
 def test_a_resumed_piecewise_schedule_switches_at_the_same_step_as_an_uninterrupted_run(
@@ -142,22 +142,15 @@ def test_a_resumed_piecewise_schedule_switches_at_the_same_step_as_an_uninterrup
     # from the resumed run's remaining steps.
     config = dataclasses.replace(tiny, total_steps=2048, learning_rates=(1e-3, 1e-4), learning_rate_steps=(1536,))
     train_expert(snippet, tmp_path / "straight", config, progress=False)
-    straight = _logged_learning_rates(ExpertDir(tmp_path / "straight" / snippet))
+    straight = _logged(ExpertDir(tmp_path / "straight" / snippet), "train/learning_rate")
     assert straight == {1024: 1e-3, 1536: 1e-3, 2048: 1e-4}  # each row logs the update before it
 
     killed = _interrupted_run(tmp_path / "killed", snippet, config, monkeypatch)  # resumes from step 512
     result = train_expert(snippet, tmp_path / "killed", config, progress=False)
     assert result.steps == 2048
-    resumed = _logged_learning_rates(killed)
+    resumed = _logged(killed, "train/learning_rate")
     assert resumed.keys() >= {1536, 2048}  # the rows after the resume (row 1024's update was the killed run's)
     assert {step: straight[step] for step in resumed} == resumed
-
-
-def _logged_noise(expert: ExpertDir) -> dict[int, float]:
-    """SB3's ``train/std`` (the policy's noise in each update) per ``time/total_timesteps`` row."""
-    with expert.progress.open() as handle:
-        rows = list(csv.DictReader(handle))
-    return {int(r["time/total_timesteps"]): float(r["train/std"]) for r in rows if r["train/std"]}
 
 
 def test_a_noise_schedule_drops_the_training_noise_at_its_step_also_across_a_resume(
@@ -167,13 +160,13 @@ def test_a_noise_schedule_drops_the_training_noise_at_its_step_also_across_a_res
         tiny, total_steps=2560, action_std=0.3, action_std_steps=(1536,), later_action_stds=(0.2,)
     )
     train_expert(snippet, tmp_path / "straight", config, progress=False)
-    straight = _logged_noise(ExpertDir(tmp_path / "straight" / snippet))
+    straight = _logged(ExpertDir(tmp_path / "straight" / snippet), "train/std")  # the policy's noise
     # Each row logs the update before the rollout it ends: the one at 2560 trained on steps 1536-2048.
     assert straight == pytest.approx({1024: 0.3, 1536: 0.3, 2048: 0.3, 2560: 0.2})
 
     killed = _interrupted_run(tmp_path / "killed", snippet, config, monkeypatch)  # resumes from step 512
     train_expert(snippet, tmp_path / "killed", config, progress=False)
-    resumed = _logged_noise(killed)
+    resumed = _logged(killed, "train/std")
     assert resumed.keys() >= {2048, 2560}
     assert resumed == pytest.approx({step: straight[step] for step in resumed})
 
