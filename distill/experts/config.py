@@ -130,8 +130,7 @@ class ExpertConfig:
 
     def action_std_at(self, steps: int) -> float:
         """The fixed training noise at environment step ``steps`` (``action_std``, then ``later_action_stds``)."""
-        passed = sum(steps >= s for s in self.action_std_steps)
-        return self.later_action_stds[passed - 1] if passed else self.action_std
+        return value_at_step((self.action_std, *self.later_action_stds), self.action_std_steps, steps)
 
     def resolved_envs(self) -> int:
         """Number of environments: ``n_envs``, or as many as CPU cores that divide ``steps_per_update``."""
@@ -160,8 +159,7 @@ class ExpertConfig:
                     f"learning_rate_steps {steps} must name one step fewer than learning_rates "
                     f"{self.learning_rates} (where each rate after the first starts)"
                 )
-            if list(steps) != sorted(set(steps)) or steps[0] <= 0:
-                raise ValueError(f"learning_rate_steps {steps} must be positive and increasing")
+            _check_switch_steps("learning_rate_steps", steps)
             if self.schedule != "piecewise":
                 raise ValueError("learning_rate_steps belongs to the piecewise schedule")
         if self.schedule not in ("piecewise", "adaptive"):
@@ -187,12 +185,23 @@ class ExpertConfig:
                 f"action_std_steps {steps} and later_action_stds {stds} must be as many "
                 "(each step names where the next noise starts)"
             )
-        if steps and (list(steps) != sorted(set(steps)) or steps[0] <= 0):
-            raise ValueError(f"action_std_steps {steps} must be positive and increasing")
+        if steps:
+            _check_switch_steps("action_std_steps", steps)
         if stds and min(stds) <= 0:
             raise ValueError(f"later_action_stds {stds} must be positive")
         if steps and self.learn_action_std:
             raise ValueError("a noise schedule (action_std_steps) fixes the noise; it cannot go with learn_action_std")
+
+
+def _check_switch_steps(name: str, steps: tuple[int, ...]) -> None:
+    """Raises ValueError unless the steps where a schedule moves on are positive and increasing."""
+    if list(steps) != sorted(set(steps)) or steps[0] <= 0:
+        raise ValueError(f"{name} {steps} must be positive and increasing")
+
+
+def value_at_step(values: tuple[float, ...], switch_steps: tuple[int, ...], steps: int) -> float:
+    """A piecewise-constant schedule at environment step ``steps``: ``values[i + 1]`` from ``switch_steps[i]`` on."""
+    return values[sum(steps >= s for s in switch_steps)]
 
 
 FAST_PROFILE_CHANGES: dict[str, Any] = {
@@ -369,8 +378,7 @@ class PiecewiseLearningRate:
         """The rate for SB3's remaining fraction of training."""
         done = min(max(1.0 - progress_remaining, 0.0), 1.0)
         if self.switch_steps:
-            steps = round(done * self.total_steps)
-            return self.rates[sum(steps >= s for s in self.switch_steps)]
+            return value_at_step(self.rates, self.switch_steps, round(done * self.total_steps))
         part = min(int(done * len(self.rates)), len(self.rates) - 1)
         return self.rates[part]
 
