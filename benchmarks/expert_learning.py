@@ -24,7 +24,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import typing
 from pathlib import Path
@@ -35,7 +34,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from distill.experts.config import ExpertConfig, expert_profiles
+from distill.experts.config import ExpertConfig, expert_profiles, with_changes
 from distill.experts.fanout import Job, run_jobs
 from distill.experts.files import expert_dir_for
 from distill.experts.training import train_expert
@@ -216,7 +215,7 @@ def main() -> None:
     parser.add_argument("--eval-every", type=int, default=25_000)
     parser.add_argument("--eval-episodes", type=int, default=50)
     parser.add_argument(
-        "--profile", choices=("seed", "fast"), default="seed", help="starting settings (--base changes them)"
+        "--profile", choices=tuple(expert_profiles()), default="seed", help="starting settings (--base changes them)"
     )
     parser.add_argument("--base", nargs="*", default=[], metavar="FIELD=VALUE", help="settings of every variant")
     parser.add_argument(
@@ -245,7 +244,7 @@ def main() -> None:
         jobs = []
         for name, changes in variants.items():
             for seed in args.seeds:
-                config = dataclasses.replace(expert_profiles()[args.profile], **{**base, **changes, "seed": seed})
+                config = with_changes(expert_profiles()[args.profile], {**base, **changes, "seed": seed})
                 config.validate()
                 for snippet in args.snippets:
                     kwargs = {

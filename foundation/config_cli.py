@@ -136,14 +136,19 @@ def parse_field_setting(cls: type, text: str) -> tuple[str, Any]:
     return name, kind(raw)
 
 
-def dataclass_from_args(cls: type[T], namespace: argparse.Namespace, base: T | None = None, **fixed: Any) -> T:
-    """Builds ``cls`` from parsed flags; flags left unset keep the defaults (``base``'s values when given)."""
+def given_fields(cls: type, namespace: argparse.Namespace) -> dict[str, Any]:
+    """``{field: value}`` of the ``cls`` fields whose flags were given (lists become tuples)."""
     values = {}
-    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+    for f in dataclasses.fields(cls):
         value = getattr(namespace, f.name, None)
         if value is not None:
             values[f.name] = tuple(value) if isinstance(value, list) else value
-    values.update(fixed)
+    return values
+
+
+def dataclass_from_args(cls: type[T], namespace: argparse.Namespace, base: T | None = None, **fixed: Any) -> T:
+    """Builds ``cls`` from parsed flags; flags left unset keep the defaults (``base``'s values when given)."""
+    values = {**given_fields(cls, namespace), **fixed}
     return dataclasses.replace(base, **values) if base is not None else cls(**values)  # type: ignore[type-var]
 
 

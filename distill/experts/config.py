@@ -5,6 +5,7 @@ Light on purpose (no torch, no simulator): the command line builds its flags fro
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -224,13 +225,42 @@ FAST_PROFILE_CHANGES: dict[str, Any] = {
 machine (``benchmarks/expert_learning.py``; the README's expert section has the curves and their commands)."""
 
 
-def expert_profiles() -> dict[str, ExpertConfig]:
-    """Named starting points for expert training: ``seed`` (Table 1, B.1.2) and ``fast``.
+FAST_3M_SCHEDULES: dict[str, Any] = {
+    "learning_rates": (3e-4, 1e-4),
+    "learning_rate_steps": (600_000,),
+    "action_std_steps": (2_000_000,),
+    "later_action_stds": (0.2,),
+    "total_steps": 3_000_000,
+}
+"""What ``--profile fast-3m`` adds to ``fast``: the step-size and noise schedules of the README's "whole recipe
+in one run" (3e-4 to 1e-4 at 600k steps, noise 0.3 to 0.2 at 2M, 3M steps)."""
 
-    ``fast`` is the seed's settings with :data:`FAST_PROFILE_CHANGES`; flags given beside
-    ``--profile`` change either further.
+
+def expert_profiles() -> dict[str, ExpertConfig]:
+    """Named starting points for expert training: ``seed`` (Table 1, B.1.2), ``fast`` and ``fast-3m``.
+
+    ``fast`` is the seed's settings with :data:`FAST_PROFILE_CHANGES`; ``fast-3m`` is
+    ``fast`` with :data:`FAST_3M_SCHEDULES`. Flags given beside ``--profile`` change
+    any of them further (through :func:`with_changes`).
     """
-    return {"seed": ExpertConfig(), "fast": ExpertConfig(**FAST_PROFILE_CHANGES)}
+    fast = ExpertConfig(**FAST_PROFILE_CHANGES)
+    return {"seed": ExpertConfig(), "fast": fast, "fast-3m": dataclasses.replace(fast, **FAST_3M_SCHEDULES)}
+
+
+def with_changes(base: ExpertConfig, changes: dict[str, Any]) -> ExpertConfig:
+    """``base`` with ``changes``, where a change to a schedule's values replaces the schedule.
+
+    One step size given without ``learning_rate_steps`` means a constant step size, so
+    it drops the base's switch steps; learned noise (``learn_action_std``) given
+    without ``action_std_steps`` drops the base's noise schedule. Without this, a
+    sweep's ``learning_rates=1e-4`` on ``fast-3m`` would fail validation.
+    """
+    changes = dict(changes)
+    if len(changes.get("learning_rates", (0, 0))) == 1 and "learning_rate_steps" not in changes:
+        changes["learning_rate_steps"] = ()
+    if changes.get("learn_action_std") and "action_std_steps" not in changes:
+        changes.update(action_std_steps=(), later_action_stds=())
+    return dataclasses.replace(base, **changes)
 
 
 @dataclass(frozen=True)

@@ -10,13 +10,21 @@ from pathlib import Path
 
 from distill.experts.config import (
     EVALUATIONS,
+    FAST_3M_SCHEDULES,
     FAST_PROFILE_CHANGES,
     BatchedExpertConfig,
     EvaluationConfig,
     ExpertConfig,
     expert_profiles,
+    with_changes,
 )
-from foundation.config_cli import LazySubParsers, add_dataclass_arguments, add_subcommands, dataclass_from_args
+from foundation.config_cli import (
+    LazySubParsers,
+    add_dataclass_arguments,
+    add_subcommands,
+    dataclass_from_args,
+    given_fields,
+)
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
@@ -85,16 +93,18 @@ def _add_profile(parser: argparse.ArgumentParser) -> None:
     changes = ", ".join(
         f"{k}={'x'.join(map(str, v)) if isinstance(v, tuple) else v}" for k, v in FAST_PROFILE_CHANGES.items()
     )
+    schedules = ", ".join(f"{k}={v}" for k, v in FAST_3M_SCHEDULES.items())
     parser.add_argument(
         "--profile",
-        choices=("seed", "fast"),
+        choices=tuple(expert_profiles()),
         default="seed",
-        help=f"starting settings, changed further by the flags below: seed (the defaults shown) or fast ({changes})",
+        help=f"starting settings, changed further by the flags below: seed (the defaults shown), fast ({changes}) "
+        f"or fast-3m (fast with {schedules}; one --learning-rates value drops its step-size schedule)",
     )
 
 
 def _expert_config(args: argparse.Namespace, **fixed) -> ExpertConfig:
-    config = dataclass_from_args(ExpertConfig, args, base=expert_profiles()[args.profile], **fixed)
+    config = with_changes(expert_profiles()[args.profile], {**given_fields(ExpertConfig, args), **fixed})
     if args.steps is not None:
         config = dataclasses.replace(config, total_steps=args.steps)
     return config

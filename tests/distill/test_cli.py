@@ -93,6 +93,12 @@ def test_fast_profile_sets_its_values_and_flags_still_win(clip_library, tmp_path
             assert saved[name] == expected, name
     assert saved["hidden_layers"] == [16, 16] and saved["epochs"] == 1  # flags beside the profile win
     assert saved["n_envs"] == FAST_PROFILE_CHANGES["n_envs"]  # train-many keeps the profile's in-process envs
+    scheduled = tmp_path / "fast-3m"  # one step size beside fast-3m: constant, its noise schedule kept
+    args_3m = [*args[:5], str(scheduled), "--steps", "512", "--workers", "1", "--profile", "fast-3m"]
+    assert main([*args_3m, *TINY_FLAGS, "--learning-rates", "1e-4", "--final-eval-episodes", "2"]) == 0
+    saved = json.loads((scheduled / "SYN_wave-0-196" / "config.json").read_text())
+    assert saved["learning_rates"] == [1e-4] and saved["learning_rate_steps"] == []
+    assert saved["action_std_steps"] == [2_000_000] and saved["later_action_stds"] == [0.2]
     capsys.readouterr()
     assert main([*args, "--engine", "warp", "--profile", "fast"]) == 2
     assert "--profile fast do not apply to --engine warp" in capsys.readouterr().err

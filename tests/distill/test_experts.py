@@ -9,7 +9,13 @@ import pytest
 import torch
 from stable_baselines3 import PPO
 
-from distill.experts.config import ExpertConfig, KlAdaptiveLearningRate, PiecewiseLearningRate
+from distill.experts.config import (
+    ExpertConfig,
+    KlAdaptiveLearningRate,
+    PiecewiseLearningRate,
+    expert_profiles,
+    with_changes,
+)
 from distill.experts.evaluation import training_task
 from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
 from distill.experts.loading import load_expert
@@ -190,6 +196,34 @@ def test_noise_schedule_values_and_checks():
         ExpertConfig(action_std_steps=(5,), later_action_stds=(0.0,)).validate()
     with pytest.raises(ValueError, match="learn_action_std"):
         ExpertConfig(action_std_steps=(5,), later_action_stds=(0.2,), learn_action_std=True).validate()
+
+
+def test_the_fast_3m_profile_is_fast_with_both_schedules_and_a_lone_change_replaces_a_schedule():
+    profiles = expert_profiles()
+    fast, fast_3m = profiles["fast"], profiles["fast-3m"]
+    fast_3m.validate()
+    assert (
+        dataclasses.replace(
+            fast_3m,
+            learning_rates=(3e-4,),
+            learning_rate_steps=(),
+            action_std_steps=(),
+            later_action_stds=(),
+            total_steps=fast.total_steps,
+        )
+        == fast
+    )
+    assert [fast_3m.action_std_at(s) for s in (0, 2_000_000)] == [0.3, 0.2]
+    assert fast_3m.total_steps == 3_000_000
+    constant = with_changes(fast_3m, {"learning_rates": (1e-4,)})  # a sweep's one step size: no schedule left
+    constant.validate()
+    assert constant.learning_rate_steps == () and constant.action_std_steps == (2_000_000,)
+    two = with_changes(fast_3m, {"learning_rates": (5e-4, 5e-5)})  # two values keep the base's switch step
+    assert two.learning_rate_steps == (600_000,)
+    learned = with_changes(fast_3m, {"learn_action_std": True})
+    learned.validate()
+    assert learned.action_std_steps == () and learned.later_action_stds == ()
+    assert with_changes(fast, {"action_std": 0.2}) == dataclasses.replace(fast, action_std=0.2)
 
 
 def test_a_branch_continues_another_runs_checkpoint_with_its_own_settings(
