@@ -103,14 +103,16 @@ def test_a_policy_on_a_shipped_decoder_finds_it_by_name_after_the_folder_moves(s
     assert summary.episodes == 1 and np.isfinite(summary.mean_return)
 
 
-def test_the_shipped_synthetic_decoder_fits_the_tasks_and_carries_its_card():
-    if "synthetic-v1" not in pretrained.pretrained_decoders():
-        pytest.fail("synthetic-v1 is not shipped in hierarchy/pretrained/ (package data)")
-    decoder = load_decoder("synthetic-v1")
+@pytest.mark.parametrize("name", ["synthetic-v1", "synthetic-v2"])
+def test_the_shipped_synthetic_decoders_fit_the_tasks_and_carry_their_cards(name):
+    if name not in pretrained.pretrained_decoders():
+        pytest.fail(f"{name} is not shipped in hierarchy/pretrained/ (package data)")
+    decoder = load_decoder(name)
     card = card_of(decoder)
-    assert card is not None and card["name"] == "synthetic-v1"
+    assert card is not None and card["name"] == name
     assert set(card["experts"]) == set(card["multi_clip"]["snippets"])
-    assert pretrained.pretrained_decoders()["synthetic-v1"].stat().st_size < 8e6
+    assert card["multi_clip"]["fraction"]["normalized_reward"] >= 0.8  # the goal, as measured
+    assert pretrained.pretrained_decoders()[name].stat().st_size < 8e6
     for task in ("velocity_control", "go_to_target"):
         env = tasks.make(task)
         sizes = {k: int(np.prod(v.shape)) for k, v in env.observation_space.spaces.items()}
