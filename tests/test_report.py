@@ -27,7 +27,7 @@ def _expert(root: Path, clip: str, start: int, end: int, curve: list[tuple[int, 
 def _transfer(
     folder: Path,
     task: str,
-    decoder: bool,
+    decoder: bool | str,
     seed: int,
     curve: list[tuple[int, float]],
     overrides: dict | None = None,
@@ -35,7 +35,8 @@ def _transfer(
 ) -> None:
     folder.mkdir(parents=True)
     config = {"seed": seed, **(config or {})}
-    info = {"task": task, "decoder": {"path": "d.safetensors"} if decoder else None, "config": config}
+    named = {"path": f"/site/{decoder}.safetensors", "name": decoder} if isinstance(decoder, str) else None
+    info = {"task": task, "decoder": named or ({"path": "d.safetensors"} if decoder else None), "config": config}
     if overrides is not None:
         info["task_overrides"] = overrides
     (folder / "transfer.json").write_text(json.dumps(info))
@@ -140,6 +141,21 @@ def test_runs_with_other_ppo_settings_are_variants_and_their_steps_count_control
     held_band = bands["velocity_control on decoder [steps_per_latent=5]"]
     np.testing.assert_array_equal(held_band["steps"], [100, 200])  # 20 and 40 latents of 5 control steps
     assert plot_transfer_curves(runs, tmp_path / "curves.png").is_file()
+
+
+def test_runs_on_different_decoders_are_settings_of_their_own_not_more_seeds(tmp_path):
+    for seed in (0, 1):
+        _transfer(tmp_path / "v1" / f"seed{seed}", "velocity_control", "synthetic-v1", seed, [(100, 1.0 + seed)])
+    _transfer(tmp_path / "v2" / "seed0", "velocity_control", "synthetic-v2", 0, [(100, 9.0)])
+    _transfer(tmp_path / "joints" / "seed0", "velocity_control", False, 0, [(100, 0.5)])
+    bands = transfer_bands(find_run_contents(tmp_path).transfer)
+    assert set(bands) == {
+        "velocity_control on decoder [decoder=synthetic-v1]",
+        "velocity_control on decoder [decoder=synthetic-v2]",
+        "velocity_control on joints",
+    }
+    assert int(bands["velocity_control on decoder [decoder=synthetic-v1]"]["seeds"]) == 2
+    assert list(bands["velocity_control on decoder [decoder=synthetic-v2]"]["mean"]) == [9.0]
 
 
 def test_noisy_and_deterministic_evaluations_pair_by_folder_and_init(run):

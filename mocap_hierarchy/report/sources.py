@@ -106,8 +106,9 @@ class TransferRun:
         returns: Mean training-episode return at each update.
         task_overrides: The task's settings that differ from its defaults (``transfer.json``).
         config: The run's PPO settings (``transfer.json``).
-        variant: The PPO settings in which this run differs from others of its task, action
-            space and task settings (set by :func:`find_run_contents`); empty when none.
+        variant: The decoder and PPO settings in which this run differs from others of its task,
+            action space and task settings (set by :func:`find_run_contents`); empty when none.
+        decoder: The decoder's shipped name or file stem; empty on joint targets.
     """
 
     folder: str
@@ -119,6 +120,7 @@ class TransferRun:
     task_overrides: dict[str, Any] = field(default_factory=dict)
     config: dict[str, Any] = field(default_factory=dict)
     variant: str = ""
+    decoder: str = ""
 
     @property
     def label(self) -> str:
@@ -218,12 +220,19 @@ def _with_variants(runs: list[TransferRun]) -> list[TransferRun]:
     members: dict[str, list[TransferRun]] = {}
     for group, run in zip(groups, runs, strict=True):
         members.setdefault(group, []).append(run)
-    varying = {}
+    varying, decoders_differ = {}, {}
     for group, same in members.items():
         keys = sorted({k for r in same for k in r.config} - set(SAME_SETTING_FIELDS))
         varying[group] = [k for k in keys if len({json.dumps(r.config.get(k)) for r in same}) > 1]
+        decoders_differ[group] = len({r.decoder for r in same}) > 1
     return [
-        replace(run, variant=", ".join(f"{k}={run.config.get(k)}" for k in varying[group]))
+        replace(
+            run,
+            variant=", ".join(
+                ([f"decoder={run.decoder}"] if decoders_differ[group] else [])
+                + [f"{k}={run.config.get(k)}" for k in varying[group]]
+            ),
+        )
         for group, run in zip(groups, runs, strict=True)
     ]
 
@@ -282,6 +291,8 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
     if info.get("decoder"):
         per_latent = int(config.get("steps_per_latent", 1) or 1)
         steps = [step * per_latent for step in steps]
+    decoder = info.get("decoder") or {}
+    decoder_name = str(decoder.get("name") or Path(str(decoder.get("path", ""))).stem) if decoder else ""
     seed = config.get("seed")
     if seed is None:  # a folder named seedN
         match = re.search(r"seed(\d+)", folder.name)
@@ -295,4 +306,5 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
         returns,
         dict(info.get("task_overrides") or {}),
         config,
+        decoder=decoder_name,
     )
