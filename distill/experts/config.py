@@ -256,7 +256,8 @@ def with_changes(base: ExpertConfig, changes: dict[str, Any]) -> ExpertConfig:
     sweep's ``learning_rates=1e-4`` on ``fast-3m`` would fail validation.
     """
     changes = dict(changes)
-    if len(changes.get("learning_rates", (0, 0))) == 1 and "learning_rate_steps" not in changes:
+    one_rate = "learning_rates" in changes and len(changes["learning_rates"]) == 1
+    if one_rate and "learning_rate_steps" not in changes:
         changes["learning_rate_steps"] = ()
     if changes.get("learn_action_std") and "action_std_steps" not in changes:
         changes.update(action_std_steps=(), later_action_stds=())

@@ -288,10 +288,10 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
     config = info.get("config", {})
     if not isinstance(config, dict):
         config = {}
-    if info.get("decoder"):
+    decoder = info.get("decoder") or {}
+    if decoder:
         per_latent = int(config.get("steps_per_latent", 1) or 1)
         steps = [step * per_latent for step in steps]
-    decoder = info.get("decoder") or {}
     decoder_name = str(decoder.get("name") or Path(str(decoder.get("path", ""))).stem) if decoder else ""
     seed = config.get("seed")
     if seed is None:  # a folder named seedN
@@ -300,7 +300,7 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
     return TransferRun(
         str(folder.relative_to(root)),
         str(info.get("task", "transfer")),
-        bool(info.get("decoder")),
+        bool(decoder),
         int(seed),
         steps,
         returns,
