@@ -9,7 +9,12 @@ mean horizontal pelvis speed. A decoder whose zero latent already stands gives a
 high-level policy time to learn; one that falls within two seconds whatever it is
 fed leaves the policy to learn balance first.
 
+With ``--latent-prior`` the same sequences are residuals on a latent prior's mean
+(``z = mu(s) + a``, as a high-level policy acting around the prior sees it): ``a = 0``
+is the prior alone.
+
 Run: python benchmarks/decoder_balance.py [--decoder synthetic-v1] [--episodes 6] [--limit 400]
+    [--latent-prior FILE]
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ import numpy as np
 
 import tasks
 from hierarchy import LatentActionEnv, load_decoder
+from hierarchy.latent_prior import load_latent_prior
 
 
 def survive(env: LatentActionEnv, std: float, seed: int, limit: int) -> tuple[int, float]:
@@ -44,16 +50,19 @@ def main() -> None:
     parser.add_argument("--limit", type=int, default=400, help="control steps at most per episode")
     parser.add_argument("--stds", type=float, nargs="+", default=[0.0, 0.5, 1.0, 2.5], help="0 holds z = 0")
     parser.add_argument("--steps-per-latent", type=int, nargs="+", default=[1, 5])
+    parser.add_argument("--latent-prior", default=None, help="latents become residuals on this prior's mean")
     args = parser.parse_args()
     decoder = load_decoder(args.decoder)
-    print(f"{args.decoder} on {args.task}, {args.episodes} episodes each, at most {args.limit} control steps")
+    prior = load_latent_prior(args.latent_prior) if args.latent_prior else None
+    around = f", around the prior {args.latent_prior}" if prior is not None else ""
+    print(f"{args.decoder} on {args.task}{around}, {args.episodes} episodes each, at most {args.limit} control steps")
     print(f"{'latents':<16}{'steps/latent':>13}{'steps survived':>16}{'pelvis m/s':>11}  per episode")
     for k in args.steps_per_latent:
-        env = LatentActionEnv(tasks.make(args.task), decoder, steps_per_latent=k)
+        env = LatentActionEnv(tasks.make(args.task), decoder, steps_per_latent=k, prior=prior)
         for std in args.stds:
             runs = [survive(env, std, seed, args.limit) for seed in range(args.episodes)]
             steps = [n for n, _ in runs]
-            label = "z = 0" if std == 0 else f"N(0, {std:g})"
+            label = ("a = 0" if prior is not None else "z = 0") if std == 0 else f"N(0, {std:g})"
             speed = np.mean([s for _, s in runs])
             print(f"{label:<16}{k:>13}{np.mean(steps):>16.0f}{speed:>11.2f}  {steps}")
 

@@ -3,6 +3,8 @@
 * :mod:`hierarchy.decoder`: the contract: :class:`LatentDecoder`, :class:`DecoderSpec`,
   :func:`load_decoder` (one safetensors file, no pickle);
 * :mod:`hierarchy.latent_env`: any walker task driven by a latent ``z`` (single env and VecEnv);
+* :mod:`hierarchy.latent_prior`: an optional state-conditioned prior ``mu(s)`` of a decoder's
+  latent, which high-level actions can be residuals on;
 * :mod:`hierarchy.task_policy`: the pickle-free high-level policy file;
 * :mod:`hierarchy.transfer`: high-level PPO on a registered task or your own env factory
   (its settings in :mod:`hierarchy.transfer_config`);
@@ -21,6 +23,7 @@ from foundation.lazy import lazy_exports
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
     from hierarchy.decoder import DecoderFileError, DecoderMismatchError, DecoderSpec, LatentDecoder, load_decoder
     from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
+    from hierarchy.latent_prior import LatentPrior, load_latent_prior
     from hierarchy.task_policy import TaskPolicy, load_task_policy
     from hierarchy.transfer import EvaluationSummary, evaluate_transfer, train_transfer
     from hierarchy.transfer_config import TransferConfig
@@ -33,10 +36,12 @@ __all__ = [
     "LatentActionEnv",
     "LatentActionVecEnv",
     "LatentDecoder",
+    "LatentPrior",
     "TaskPolicy",
     "TransferConfig",
     "evaluate_transfer",
     "load_decoder",
+    "load_latent_prior",
     "load_task_policy",
     "train_transfer",
 ]
@@ -51,10 +56,12 @@ __getattr__, __dir__ = lazy_exports(
         "LatentActionEnv": "hierarchy.latent_env",
         "LatentActionVecEnv": "hierarchy.latent_env",
         "LatentDecoder": "hierarchy.decoder",
+        "LatentPrior": "hierarchy.latent_prior",
         "TaskPolicy": "hierarchy.task_policy",
         "TransferConfig": "hierarchy.transfer_config",
         "evaluate_transfer": "hierarchy.transfer",
         "load_decoder": "hierarchy.decoder",
+        "load_latent_prior": "hierarchy.latent_prior",
         "load_task_policy": "hierarchy.task_policy",
         "train_transfer": "hierarchy.transfer",
     },

@@ -15,6 +15,11 @@ Two forms with the same semantics:
 With ``steps_per_latent = k > 1`` one high-level action holds for ``k``
 low-level steps and their rewards are summed; the decoder still runs every
 low-level step on the current observation.
+
+With a :class:`hierarchy.latent_prior.LatentPrior` the high-level action is a
+*residual*: the decoder receives ``z = mu(s) + a`` (clipped to the bound),
+``mu(s)`` recomputed on every low-level step, so ``a = 0`` does what the
+training motions did from the current state.
 """
 
 from __future__ import annotations
@@ -26,6 +31,7 @@ import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from hierarchy.decoder import DecoderMismatchError, LatentDecoder
+from hierarchy.latent_prior import LatentPrior
 
 
 def observation_sizes(space: gym.Space) -> dict[str, int]:
@@ -57,6 +63,21 @@ def _checked_latent(z: np.ndarray, space: gym.spaces.Box) -> np.ndarray:
     return np.clip(z, space.low, space.high)
 
 
+class _Latents:
+    """Turns a high-level action into the decoder's latent: itself, or a residual on the prior's mean."""
+
+    def __init__(self, decoder: LatentDecoder, prior: LatentPrior | None, space: gym.spaces.Box) -> None:
+        if prior is not None:
+            prior.check_fits(decoder)
+        self.decoder, self.prior, self.space = decoder, prior, space
+
+    def __call__(self, observation: Mapping[str, np.ndarray], action: np.ndarray) -> np.ndarray:
+        if self.prior is None:
+            return action
+        mean = self.prior.latents(self.decoder.flatten(observation))
+        return np.clip(mean + action, self.space.low, self.space.high).astype(np.float32)
+
+
 def _action_bounds(decoder: LatentDecoder, space: gym.Space) -> tuple[np.ndarray, np.ndarray]:
     if not isinstance(space, gym.spaces.Box) or space.shape != (decoder.spec.action_size,):
         raise DecoderMismatchError(
@@ -73,13 +94,19 @@ class LatentActionEnv(gym.Wrapper):
         decoder: The frozen decoder.
         max_latent: Per-element bound of ``z`` (the seed's 3).
         steps_per_latent: Low-level steps per high-level action (the seed's 1).
+        prior: A latent prior of this decoder; actions become residuals on its mean.
 
     Raises:
-        DecoderMismatchError: The decoder's observations or actions do not fit ``env``.
+        DecoderMismatchError: The decoder's (or prior's) observations or actions do not fit ``env``.
     """
 
     def __init__(
-        self, env: gym.Env, decoder: LatentDecoder, max_latent: float = 3.0, steps_per_latent: int = 1
+        self,
+        env: gym.Env,
+        decoder: LatentDecoder,
+        max_latent: float = 3.0,
+        steps_per_latent: int = 1,
+        prior: LatentPrior | None = None,
     ) -> None:
         super().__init__(env)
         if steps_per_latent < 1:
@@ -89,6 +116,7 @@ class LatentActionEnv(gym.Wrapper):
         self.decoder = decoder
         self.steps_per_latent = steps_per_latent
         self.action_space = _latent_space(decoder, max_latent)
+        self._latents = _Latents(decoder, prior, self.action_space)
         self._observation: dict[str, np.ndarray] = {}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -100,14 +128,16 @@ class LatentActionEnv(gym.Wrapper):
     def step(self, action):
         """Decodes ``z`` into joint targets and steps ``steps_per_latent`` times.
 
-        ``info`` gains ``low_level_action`` (the last joint targets applied) and ``latent``.
+        ``info`` gains ``low_level_action`` (the last joint targets applied) and ``latent``
+        (the last ``z`` decoded).
         """
         if not self._observation:
             raise RuntimeError("call reset() before step()")
         assert isinstance(self.action_space, gym.spaces.Box)
-        z = _checked_latent(action, self.action_space)
+        action = _checked_latent(action, self.action_space)
         total = 0.0
         for _ in range(self.steps_per_latent):
+            z = self._latents(self._observation, action)
             low_level = np.clip(self.decoder.decode(self._observation, z), self._low, self._high)
             observation, reward, terminated, truncated, info = self.env.step(low_level)
             self._observation = observation
@@ -130,10 +160,16 @@ class LatentActionVecEnv(VecEnvWrapper):
             done; its next episode has then already run the remaining steps
             under the old latent (the VecEnv resets it automatically) and those
             rewards are not counted.
+        prior: A latent prior of this decoder; actions become residuals on its mean.
     """
 
     def __init__(
-        self, venv: VecEnv, decoder: LatentDecoder, max_latent: float = 3.0, steps_per_latent: int = 1
+        self,
+        venv: VecEnv,
+        decoder: LatentDecoder,
+        max_latent: float = 3.0,
+        steps_per_latent: int = 1,
+        prior: LatentPrior | None = None,
     ) -> None:
         if steps_per_latent < 1:
             raise ValueError("steps_per_latent must be at least 1")
@@ -142,6 +178,8 @@ class LatentActionVecEnv(VecEnvWrapper):
         super().__init__(venv, action_space=_latent_space(decoder, max_latent))
         self.decoder = decoder
         self.steps_per_latent = steps_per_latent
+        assert isinstance(self.action_space, gym.spaces.Box)
+        self._latents = _Latents(decoder, prior, self.action_space)
         self._observation: Mapping[str, np.ndarray] | None = None
         self._latent: np.ndarray | None = None
 
@@ -165,7 +203,8 @@ class LatentActionVecEnv(VecEnvWrapper):
         ended = np.zeros(self.num_envs, dtype=bool)
         final_infos: list[dict] = [{} for _ in range(self.num_envs)]
         for _ in range(self.steps_per_latent):
-            low_level = np.clip(self.decoder.decode(self._observation, self._latent), self._low, self._high)
+            z = self._latents(self._observation, self._latent)
+            low_level = np.clip(self.decoder.decode(self._observation, z), self._low, self._high)
             observation, rewards, dones, infos = self.venv.step(low_level)
             assert isinstance(observation, dict)
             self._observation = observation

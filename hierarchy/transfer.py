@@ -36,6 +36,7 @@ from foundation.resume import check_same_settings, settings_record
 from foundation.sb3 import PpoSettings, build_ppo, load_ppo, resumable_logger, save_sb3
 from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
+from hierarchy.latent_prior import PRETRAINED_PRIORS, LatentPrior, load_latent_prior, resolve_prior
 from hierarchy.pretrained import pretrained_name, resolve_decoder
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
 from hierarchy.transfer_config import RESUME_FREE_FIELDS, TransferConfig  # light module; re-exported here
@@ -103,16 +104,22 @@ class TaskSource:
 
 
 def make_task_env(
-    source: TaskSource, decoder: LatentDecoder | None, max_latent: float = 3.0, steps_per_latent: int = 1
+    source: TaskSource,
+    decoder: LatentDecoder | None,
+    max_latent: float = 3.0,
+    steps_per_latent: int = 1,
+    prior: LatentPrior | None = None,
 ):
     """One environment of ``source``, wrapped in the latent action space when a decoder is given."""
     env = source.factory()
     if decoder is None:
         return env
-    return LatentActionEnv(env, decoder, max_latent, steps_per_latent)
+    return LatentActionEnv(env, decoder, max_latent, steps_per_latent, prior)
 
 
-def _vec_env(source: TaskSource, decoder: LatentDecoder | None, config: TransferConfig):
+def _vec_env(
+    source: TaskSource, decoder: LatentDecoder | None, config: TransferConfig, prior: LatentPrior | None = None
+):
     """Raw task environments, decoded in one batch, then SB3's observation/reward normaliser."""
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
@@ -126,7 +133,7 @@ def _vec_env(source: TaskSource, decoder: LatentDecoder | None, config: Transfer
         vec_env_kwargs={"start_method": "spawn"} if use_processes else None,
     )
     if decoder is not None:
-        venv = LatentActionVecEnv(venv, decoder, config.max_latent, config.steps_per_latent)
+        venv = LatentActionVecEnv(venv, decoder, config.max_latent, config.steps_per_latent, prior)
     return VecNormalize(venv, norm_obs=True, norm_reward=config.normalize_reward, gamma=config.gamma)
 
 
@@ -150,6 +157,7 @@ def train_transfer(
     task_overrides: dict[str, Any] | None = None,
     progress: bool = True,
     task_name: str | None = None,
+    latent_prior: str | os.PathLike | None = None,
 ) -> Path:
     """Trains a high-level policy on a task; returns the policy file.
 
@@ -167,9 +175,12 @@ def train_transfer(
         task_overrides: Config fields of a registered task to change.
         progress: Show a progress bar.
         task_name: Label recorded for a factory (default: its ``__name__``).
+        latent_prior: A latent prior file of the decoder, or the shipped decoder's name
+            (``synthetic-v2``): the policy's actions become residuals on the prior's mean
+            (:mod:`hierarchy.latent_prior`). None: actions are the latents themselves.
 
     Raises:
-        hierarchy.DecoderMismatchError: The decoder does not fit the task.
+        hierarchy.DecoderMismatchError: The decoder does not fit the task (or the prior the decoder).
         foundation.resume.SettingsMismatchError: ``out`` holds a run of other settings.
     """
     config = config or TransferConfig()
@@ -180,10 +191,14 @@ def train_transfer(
     decoder = resolve_decoder(decoder) if decoder is not None else None
     frozen = load_decoder(decoder) if decoder is not None else None
     decoder_sha = file_sha256(decoder) if decoder is not None else None
+    prior, prior_facts = _prior_for(latent_prior, frozen, decoder_sha)
     checkpoint = out / CHECKPOINT_DIR
-    _check_resume_settings(checkpoint, _resume_settings(source, decoder_sha, config))
+    settings = _resume_settings(source, decoder_sha, config)
+    if prior_facts is not None:  # absent otherwise, so runs from before priors existed still resume
+        settings["latent_prior"] = prior_facts["sha256"]
+    _check_resume_settings(checkpoint, settings)
 
-    venv = _vec_env(source, frozen, config)
+    venv = _vec_env(source, frozen, config, prior)
     model = _resume_or_build(checkpoint, venv, config, with_decoder=frozen is not None, out=out)
     model.set_logger(resumable_logger(out, ["csv", "tensorboard"], resumed=model.num_timesteps > 0))
 
@@ -198,10 +213,57 @@ def train_transfer(
                 venv.close()
                 raise stop.stop(f"transfer: stopped at step {model.num_timesteps}", "run the same command again")
 
-    path = _save_policy(out, model, source, decoder, decoder_sha, config)
+    path = _save_policy(out, model, source, decoder, decoder_sha, config, prior_facts)
     _save_resume_files(model, checkpoint)
     venv.close()
     return path
+
+
+def _prior_for(
+    latent_prior: str | os.PathLike | None, decoder: LatentDecoder | None, decoder_sha: str | None
+) -> tuple[LatentPrior | None, dict[str, Any] | None]:
+    """The prior to act around and the facts a policy records about it (``path``, ``name``, ``sha256``)."""
+    if latent_prior is None:
+        return None, None
+    if decoder is None:
+        raise ValueError("a latent prior belongs to a decoder: pass --decoder too")
+    path = resolve_prior(latent_prior)
+    prior = load_latent_prior(path)
+    prior.check_fits(decoder, decoder_sha)
+    name = path.name.removesuffix(".safetensors") if path.resolve().parent == PRETRAINED_PRIORS else None
+    return prior, {"path": str(path.resolve()), "name": name, "sha256": file_sha256(path)}
+
+
+def load_policy_prior(
+    policy: TaskPolicy, decoder: LatentDecoder | None, prior_path: str | os.PathLike | None = None
+) -> LatentPrior | None:
+    """The latent prior a task policy acts around (None if it acts on latents directly).
+
+    Args:
+        policy: A task policy.
+        decoder: The decoder it drives.
+        prior_path: Override of the prior file's recorded location.
+
+    Raises:
+        FileNotFoundError: The recorded prior file is gone (pass its new place).
+        ValueError: The prior file differs from the one the policy was trained with.
+    """
+    facts = (policy.spec.decoder or {}).get("latent_prior")
+    if facts is None or decoder is None:
+        return None
+    if prior_path is not None:
+        path = resolve_prior(prior_path)
+    else:
+        path = Path(facts["path"])
+        if not path.is_file() and facts.get("name"):
+            path = resolve_prior(facts["name"])
+    if not path.is_file():
+        raise FileNotFoundError(f"the policy acts around latent prior {path}, which does not exist; pass its file")
+    if file_sha256(path) != facts["sha256"]:
+        raise ValueError(f"{path} is not the latent prior the policy was trained with (SHA-256 differs)")
+    prior = load_latent_prior(path)
+    prior.check_fits(decoder)
+    return prior
 
 
 def _resume_settings(source: TaskSource, decoder_sha: str | None, config: TransferConfig) -> dict[str, Any]:
@@ -232,6 +294,7 @@ def _save_policy(
     decoder: str | os.PathLike | None,
     decoder_sha: str | None,
     config: TransferConfig,
+    prior_facts: dict[str, Any] | None = None,
 ) -> Path:
     """Writes ``policy.safetensors`` (pickle-free) and ``transfer.json``."""
     decoder_facts = None
@@ -244,6 +307,8 @@ def _save_policy(
             "max_latent": config.max_latent,
             "steps_per_latent": config.steps_per_latent,
         }
+        if prior_facts is not None:
+            decoder_facts["latent_prior"] = prior_facts
     policy = task_policy_from_sb3(
         model,
         model.get_vec_normalize_env(),
@@ -363,6 +428,7 @@ def evaluate_transfer(
     max_steps: int | None = None,
     env_factory: Callable[[], gym.Env] | None = None,
     progress: bool = False,
+    latent_prior_path: str | os.PathLike | None = None,
 ) -> EvaluationSummary:
     """Runs a task policy deterministically and summarises the task's returns.
 
@@ -374,6 +440,7 @@ def evaluate_transfer(
         max_steps: Override of the task's episode limit (shorter evaluations; registered tasks only).
         env_factory: The factory a policy was trained with when its task is not registered.
         progress: Show a progress bar over the episodes.
+        latent_prior_path: Override of the latent prior file's location (policies trained around one).
     """
     if episodes < 1:
         raise ValueError("episodes must be at least 1")
@@ -385,6 +452,7 @@ def evaluate_transfer(
         decoder,
         facts.get("max_latent", 3.0),
         facts.get("steps_per_latent", 1),
+        load_policy_prior(policy, decoder, latent_prior_path),
     )
     returns, lengths = [], []
     bar = tqdm(range(episodes), desc=f"evaluating on {spec.task} (deterministic)", unit="episode", disable=not progress)

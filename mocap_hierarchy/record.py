@@ -124,7 +124,7 @@ def _multi_clip(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
 
 
 def _task_policy(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
-    from hierarchy.transfer import TaskSource, load_policy_and_decoder, make_task_env
+    from hierarchy.transfer import TaskSource, load_policy_and_decoder, load_policy_prior, make_task_env
 
     policy, decoder = load_policy_and_decoder(path)
     spec = policy.spec
@@ -136,6 +136,7 @@ def _task_policy(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
         decoder,
         facts.get("max_latent", 3.0),
         facts.get("steps_per_latent", 1),
+        load_policy_prior(policy, decoder),
     )
     return env, lambda observation: policy.act(_batched(observation))[0], None
 

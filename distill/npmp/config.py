@@ -34,6 +34,43 @@ class PolicyEvaluationConfig:
 
 
 @dataclass(frozen=True)
+class LatentPriorConfig:
+    """How to fit a state-conditioned latent prior to a multi-clip policy (:mod:`distill.npmp.prior`).
+
+    Attributes:
+        episodes: Episodes per snippet in which the policy's latents are recorded.
+        latent_noise: Standard deviation of the Gaussian noise added to the latent the
+            decoder acts on while recording (the recorded target stays the encoder's
+            mean), so the prior also sees states a little off the training motions.
+        min_steps: Random starts exclude the last ``min_steps + 1`` frames.
+        n_envs: Environments stepped in lockstep per snippet.
+        hidden_layers: Hidden sizes of the prior's MLP.
+        steps: Adam steps of the regression.
+        batch_size: Samples per step.
+        learning_rate: Adam step size.
+        validation_fraction: Share of the samples held out to report the fit.
+        seed: Seed of the starts, the noise and the network.
+    """
+
+    episodes: int = 40
+    latent_noise: float = 0.5
+    min_steps: int = 29
+    n_envs: int = 8
+    hidden_layers: tuple[int, ...] = (256, 256)
+    steps: int = 4000
+    batch_size: int = 512
+    learning_rate: float = 1e-3
+    validation_fraction: float = 0.1
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.episodes < 1 or self.steps < 1 or self.batch_size < 1 or self.n_envs < 1:
+            raise ValueError("episodes, steps, batch_size and n_envs must be positive")
+        if self.latent_noise < 0 or not 0.0 < self.validation_fraction < 1.0:
+            raise ValueError("need latent_noise >= 0 and validation_fraction in (0, 1)")
+
+
+@dataclass(frozen=True)
 class NpmpConfig:
     """The multi-clip policy's architecture and objective (seed B.2, Table 2).
 

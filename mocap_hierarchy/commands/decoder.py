@@ -6,7 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
-from foundation.config_cli import LazySubParsers, add_subcommands
+from distill.npmp.config import LatentPriorConfig
+from foundation.config_cli import LazySubParsers, add_dataclass_arguments, add_subcommands, dataclass_from_args
 
 DECODER_HELP = "decoder .safetensors file or a shipped decoder's name (`mocap-hierarchy decoder list`)"
 """How every command that takes a decoder describes the argument."""
@@ -38,6 +39,18 @@ def add_commands(subparsers: LazySubParsers) -> None:
     card.add_argument("file", help=DECODER_HELP)
     card.add_argument("--out", type=Path, default=None, help="Markdown file (default: print it)")
     card.set_defaults(handler=_card)
+    prior = decoder_commands.add_parser(
+        "fit-prior",
+        help="fit a state-conditioned latent prior to a multi-clip policy (high-level policies can act around it)",
+    )
+    prior.add_argument("policy", type=Path, help="the multi-clip policy.safetensors the decoder came from")
+    prior.add_argument("decoder", help=DECODER_HELP)
+    prior.add_argument("out", type=Path, help="prior file to write (.safetensors)")
+    prior.add_argument("--data", type=Path, default=None, help="rollout dataset: record on its snippets")
+    prior.add_argument("--snippets", nargs="+", default=None, help="snippet ids (default: the data's)")
+    prior.add_argument("--clips", default=None, help="clip file of the snippets (default: built-in synthetic)")
+    add_dataclass_arguments(prior, LatentPriorConfig)
+    prior.set_defaults(handler=_fit_prior)
     convert = decoder_commands.add_parser(
         "import-mocapact", help="convert MoCapAct's multi-clip checkpoint (.ckpt) into a decoder file (no code runs)"
     )
@@ -98,6 +111,29 @@ def _card(args: argparse.Namespace) -> None:
     from foundation.atomic import write_text
 
     print(f"wrote {write_text(args.out, text)}")
+
+
+def _fit_prior(args: argparse.Namespace) -> None:
+    from distill.npmp.model import load_policy
+    from distill.npmp.prior import fit_latent_prior
+
+    snippets = args.snippets
+    if snippets is None and args.data is not None:
+        from distill.dataset.reader import RolloutDataset
+
+        dataset = RolloutDataset(args.data)
+        snippets = dataset.snippets()
+        dataset.close()
+    if not snippets:
+        raise ValueError("name --snippets (the policy's training snippets) or give --data to use the dataset's")
+    config = dataclass_from_args(LatentPriorConfig, args)
+    prior, fit = fit_latent_prior(load_policy(args.policy), args.decoder, snippets, config, args.clips, progress=True)
+    prior.save(args.out)
+    print(
+        f"wrote {args.out}: {prior.spec.provenance['samples']} states over {len(snippets)} snippets; held-out "
+        f"error {fit['validation_mse']:.4f} against latent variance {fit['latent_variance']:.4f} "
+        f"({fit['explained']:.0%} explained)"
+    )
 
 
 def _import_mocapact(args: argparse.Namespace) -> None:

@@ -28,6 +28,9 @@ def add_commands(subparsers: LazySubParsers) -> None:
     evaluate.add_argument(
         "--decoder", default=None, help="where the policy's decoder file is now (or a shipped decoder's name)"
     )
+    evaluate.add_argument(
+        "--latent-prior", default=None, help="where the policy's latent prior file is now (policies trained around one)"
+    )
     evaluate.add_argument("--max-steps", type=int, default=None, help="shorter episodes than the task's limit")
     evaluate.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluate.add_argument("--json", type=Path, default=None, help="write the summary here")
@@ -40,6 +43,12 @@ def _build_train(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
     parser.add_argument(
         "--decoder", default=None, help=f"{DECODER_HELP}; omit for the no-decoder baseline (joint targets)"
+    )
+    parser.add_argument(
+        "--latent-prior",
+        default=None,
+        help="act around a latent prior of the decoder: a prior file (`decoder fit-prior`) or a shipped decoder's "
+        "name (synthetic-v2); the policy's actions become residuals on the prior's mean",
     )
     parser.add_argument("--out", type=Path, required=True, help="output folder (policy.safetensors lands here)")
     parser.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")
@@ -71,7 +80,9 @@ def _train(args: argparse.Namespace) -> None:
     config = dataclass_from_args(TransferConfig, args)
     if args.steps is not None:
         config = dataclasses.replace(config, total_steps=args.steps)
-    path = train_transfer(args.task, args.out, args.decoder, config, parse_settings(args.set))
+    path = train_transfer(
+        args.task, args.out, args.decoder, config, parse_settings(args.set), latent_prior=args.latent_prior
+    )
     print(f"task policy written to {path}")
 
 
@@ -79,7 +90,9 @@ def _evaluate(args: argparse.Namespace) -> None:
     from hierarchy.transfer import POLICY_FILE, evaluate_transfer
 
     path = file_in_folder(args.policy, POLICY_FILE)
-    summary = evaluate_transfer(path, args.episodes, args.decoder, args.seed, args.max_steps, progress=True)
+    summary = evaluate_transfer(
+        path, args.episodes, args.decoder, args.seed, args.max_steps, progress=True, latent_prior_path=args.latent_prior
+    )
     print(
         f"{summary.task}: return {summary.mean_return:.2f} +- {summary.std_return:.2f}, "
         f"length {summary.mean_length:.1f} over {summary.episodes} episodes"

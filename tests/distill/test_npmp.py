@@ -124,3 +124,48 @@ def test_same_settings_train_the_same_decoder(rollout_dir, tmp_path):
         decoders.append(load_decoder(result.decoder).state_dict())
     for name, value in decoders[0].items():
         assert torch.equal(value, decoders[1][name]), name
+
+
+def test_latent_prior_regression_learns_a_known_map():
+    from distill.npmp.config import LatentPriorConfig
+    from distill.npmp.prior import LatentSamples, regress_prior
+    from hierarchy.decoder import DecoderSpec, LatentDecoder
+    from hierarchy.latent_prior import LatentPrior
+
+    spec = DecoderSpec({"walker/joints_pos": 6}, latent_size=3, hidden_layers=(8,))
+    decoder = LatentDecoder(spec, np.zeros(6), np.ones(6))
+    rng = np.random.default_rng(0)
+    observations = rng.normal(size=(2000, 6)).astype(np.float32)
+    latents = np.tanh(observations @ rng.normal(size=(6, 3))).astype(np.float32)
+    torch.manual_seed(0)
+    prior = LatentPrior.for_decoder(decoder, "0" * 64, hidden_layers=(64, 64))
+    untrained = float(((prior.latents(observations) - latents) ** 2).mean())
+    fit = regress_prior(prior, LatentSamples(observations, latents), LatentPriorConfig(steps=600, batch_size=128))
+    assert fit["explained"] > 0.9 and fit["validation_mse"] < 0.1 * untrained, (fit, untrained)
+
+
+def test_fit_latent_prior_records_the_policy_and_refuses_another_decoder(distilled, tmp_path):
+    from distill.npmp.config import LatentPriorConfig
+    from distill.npmp.prior import fit_latent_prior
+    from foundation.fingerprints import file_sha256
+    from hierarchy.latent_prior import load_latent_prior
+
+    result, _ = distilled
+    policy = load_policy(result.policy)
+    config = LatentPriorConfig(episodes=2, n_envs=2, steps=50, batch_size=32, hidden_layers=(16,))
+    prior, fit = fit_latent_prior(policy, result.decoder, ["SYN_stand-0-181"], config)
+    assert prior.spec.decoder_sha256 == file_sha256(result.decoder) and prior.spec.latent_size == SMALL.latent_size
+    assert prior.spec.provenance["samples"] > 2 and prior.spec.provenance["snippets"] == ["SYN_stand-0-181"]
+    assert np.isfinite(fit["validation_mse"])
+    loaded = load_latent_prior(prior.save(tmp_path / "prior.safetensors"))
+    assert loaded.spec == prior.spec
+    # The decoder file must be this policy's decoder.
+    other = load_decoder(result.decoder)
+    with torch.no_grad():
+        for parameter in other.net.parameters():
+            parameter.add_(0.5)
+    other.save(tmp_path / "other.safetensors")
+    with pytest.raises(ValueError, match="not this multi-clip policy's decoder"):
+        fit_latent_prior(policy, tmp_path / "other.safetensors", ["SYN_stand-0-181"], config)
+    with pytest.raises(ValueError, match="name the snippets"):
+        fit_latent_prior(policy, result.decoder, [], config)

@@ -1,0 +1,212 @@
+"""A state-conditioned latent prior: where a decoder's latent usually is, given the body's state.
+
+A decoder trained with MoCapAct's objective has a fixed prior ``N(0, I)``
+(``alpha = 0``), so ``z = 0`` or a random ``z`` means nothing in particular and
+the walker falls within about two seconds. A :class:`LatentPrior` is a small
+frozen MLP ``mu(s)`` fitted, after distillation, to the latents the multi-clip
+policy's encoder chose in each proprioceptive state ``s``
+(:func:`distill.npmp.prior.fit_latent_prior`). Driving the decoder with
+``z = mu(s)`` keeps the walker doing what the training motions did from that
+state; a high-level policy can then act *around* it: with a prior, the
+latent-action environments (:mod:`hierarchy.latent_env`) read the policy's
+action as a residual, ``z = mu(s) + a`` (PULSE's choice of a learned prior
+for the high level).
+
+The file (one ``.safetensors``, defined only here): tensors ``net.*`` (the
+MLP), ``observation_mean`` and ``observation_std`` (the decoder's own
+normaliser, copied), and a JSON :class:`LatentPriorSpec` under the metadata key
+``mocap_hierarchy``. It names the SHA-256 of the decoder file it was fitted
+for; using it with another decoder is refused. Priors of the shipped decoders
+sit in ``hierarchy/pretrained/priors/NAME.safetensors`` and load by the
+decoder's name. Loading reads tensors and JSON only.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+
+from foundation.described_file import read_described, write_described
+from foundation.networks import ACTIVATIONS, mlp
+from hierarchy.decoder import DecoderMismatchError, LatentDecoder
+from hierarchy.pretrained import PRETRAINED_FOLDER
+
+PRIOR_FORMAT = "mocap_hierarchy.latent_prior"
+PRIOR_SCHEMA_VERSION = 1
+PRETRAINED_PRIORS = PRETRAINED_FOLDER / "priors"
+"""Where the priors of shipped decoders live, one ``NAME.safetensors`` per decoder name."""
+
+
+class LatentPriorFileError(ValueError):
+    """A latent prior file is missing, unreadable, or of another format or version."""
+
+
+@dataclass(frozen=True)
+class LatentPriorSpec:
+    """Everything about a prior except its weights (the JSON part of the file).
+
+    Attributes:
+        observation_sizes: The decoder's observation keys in input order, with sizes.
+        latent_size: Size of ``z``.
+        hidden_layers: Hidden sizes of the MLP.
+        activation: Hidden activation, a key of ``foundation.networks.ACTIVATIONS``.
+        decoder_sha256: SHA-256 of the decoder file the prior was fitted for.
+        provenance: How it was fitted: policy, snippets, episodes, noise, steps, loss.
+    """
+
+    observation_sizes: dict[str, int]
+    latent_size: int
+    decoder_sha256: str
+    hidden_layers: tuple[int, ...] = (256, 256)
+    activation: str = "elu"
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.activation not in ACTIVATIONS:
+            raise LatentPriorFileError(f"unknown activation {self.activation!r}; known: {', '.join(ACTIVATIONS)}")
+        if self.latent_size < 1 or not self.observation_sizes:
+            raise LatentPriorFileError("a latent prior needs observations and a latent")
+
+    @property
+    def observation_size(self) -> int:
+        """Length of the flat observation vector."""
+        return sum(self.observation_sizes.values())
+
+
+class LatentPrior(nn.Module):
+    """The frozen map ``s -> mu(s)`` (see the module docstring).
+
+    Args:
+        spec: Architecture, observations and the decoder it belongs to.
+        observation_mean: ``(observation_size,)`` the decoder's observation mean.
+        observation_std: ``(observation_size,)`` the decoder's observation standard deviation.
+        state_dict: Weights of the MLP (random if omitted).
+    """
+
+    observation_mean: torch.Tensor
+    observation_std: torch.Tensor
+
+    def __init__(
+        self,
+        spec: LatentPriorSpec,
+        observation_mean: np.ndarray | torch.Tensor,
+        observation_std: np.ndarray | torch.Tensor,
+        state_dict: Mapping[str, torch.Tensor] | None = None,
+    ) -> None:
+        super().__init__()
+        self.spec = spec
+        self.net = mlp(spec.observation_size, spec.hidden_layers, spec.latent_size, spec.activation, False)
+        mean = torch.as_tensor(np.asarray(observation_mean), dtype=torch.float32).reshape(-1)
+        std = torch.as_tensor(np.asarray(observation_std), dtype=torch.float32).reshape(-1)
+        if mean.shape != (spec.observation_size,) or std.shape != (spec.observation_size,):
+            raise LatentPriorFileError(f"the observation statistics must have {spec.observation_size} values")
+        self.register_buffer("observation_mean", mean)
+        self.register_buffer("observation_std", std)
+        if state_dict is not None:
+            self.net.load_state_dict(dict(state_dict))
+
+    @classmethod
+    def for_decoder(cls, decoder: LatentDecoder, decoder_sha256: str, **spec_fields: Any) -> LatentPrior:
+        """An untrained prior over ``decoder``'s observations and latent (trainable until :meth:`freeze`)."""
+        spec = LatentPriorSpec(
+            dict(decoder.spec.observation_sizes), decoder.spec.latent_size, decoder_sha256, **spec_fields
+        )
+        return cls(spec, decoder.observation_mean.cpu(), decoder.observation_std.cpu())
+
+    def freeze(self) -> LatentPrior:
+        """Eval mode, no gradients: how it is used beneath a high-level policy."""
+        self.requires_grad_(False)
+        return self.eval()
+
+    def forward(self, observation: torch.Tensor) -> torch.Tensor:
+        """``(N, observation_size)`` raw flat observations -> ``(N, latent_size)`` prior means."""
+        return self.net((observation - self.observation_mean) / self.observation_std)
+
+    @torch.inference_mode()
+    def latents(self, flat_observations: np.ndarray) -> np.ndarray:
+        """NumPy form of :meth:`forward` for ``(N, observation_size)`` or ``(observation_size,)``."""
+        flat = np.asarray(flat_observations, dtype=np.float32)
+        out = self(torch.from_numpy(flat.reshape(-1, flat.shape[-1])).to(self.observation_mean.device))
+        z = out.cpu().numpy()
+        return z[0] if flat.ndim == 1 else z
+
+    def check_fits(self, decoder: LatentDecoder, decoder_sha256: str | None = None) -> None:
+        """Refuses a decoder with other observations or latent size, or (given its SHA-256) another file.
+
+        Raises:
+            DecoderMismatchError: Saying which part differs.
+        """
+        if dict(decoder.spec.observation_sizes) != self.spec.observation_sizes:
+            raise DecoderMismatchError("the latent prior reads other observations than the decoder")
+        if decoder.spec.latent_size != self.spec.latent_size:
+            raise DecoderMismatchError(
+                f"the latent prior has {self.spec.latent_size} latents; the decoder {decoder.spec.latent_size}"
+            )
+        if decoder_sha256 is not None and decoder_sha256 != self.spec.decoder_sha256:
+            raise DecoderMismatchError(
+                "the latent prior was fitted for another decoder file (SHA-256 differs); fit one for this "
+                "decoder with `mocap-hierarchy decoder fit-prior`"
+            )
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Writes the prior file atomically; returns the path."""
+        tensors = {f"net.{k}": v for k, v in self.net.state_dict().items()}
+        tensors["observation_mean"] = self.observation_mean
+        tensors["observation_std"] = self.observation_std
+        return write_described(path, tensors, PRIOR_FORMAT, PRIOR_SCHEMA_VERSION, asdict(self.spec))
+
+
+def resolve_prior(source: str | os.PathLike) -> Path:
+    """An existing path, else the prior shipped for the decoder named ``source`` (unchanged if none)."""
+    path = Path(source)
+    if path.exists():
+        return path
+    shipped = PRETRAINED_PRIORS / f"{source}.safetensors"
+    return shipped if shipped.is_file() else path
+
+
+def shipped_prior_names() -> list[str]:
+    """Names of the shipped decoders that come with a prior."""
+    return sorted(p.name.removesuffix(".safetensors") for p in PRETRAINED_PRIORS.glob("*.safetensors"))
+
+
+def load_latent_prior(source: str | os.PathLike, device: str | torch.device = "cpu") -> LatentPrior:
+    """Loads a prior file, or the prior shipped with the decoder named ``source``; frozen.
+
+    Raises:
+        LatentPriorFileError: Missing file, another format, a newer schema or corrupt content.
+    """
+    path = resolve_prior(source)
+    shipped = ", ".join(shipped_prior_names()) or "none"
+    description, tensors = read_described(
+        path,
+        PRIOR_FORMAT,
+        PRIOR_SCHEMA_VERSION,
+        "latent prior",
+        error=LatentPriorFileError,
+        missing_error=LatentPriorFileError,
+        missing_hint=f"; `mocap-hierarchy decoder fit-prior` writes one (shipped priors: {shipped})",
+    )
+    description["hidden_layers"] = tuple(description.get("hidden_layers", ()))
+    description["observation_sizes"] = {str(k): int(v) for k, v in description.get("observation_sizes", {}).items()}
+    try:
+        spec = LatentPriorSpec(**description)
+    except TypeError as error:
+        raise LatentPriorFileError(f"{path}: {error}") from None
+    missing = [k for k in ("observation_mean", "observation_std") if k not in tensors]
+    if missing:
+        raise LatentPriorFileError(f"{path} lacks tensors {missing}")
+    prior = LatentPrior(spec, tensors["observation_mean"], tensors["observation_std"])
+    weights = {k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")}
+    try:
+        prior.net.load_state_dict(weights)
+    except RuntimeError as error:
+        raise LatentPriorFileError(f"{path}: weights do not match the described architecture ({error})") from None
+    return prior.freeze().to(device)
