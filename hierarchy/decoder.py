@@ -29,6 +29,8 @@ a decoder shipped with the library (:mod:`hierarchy.pretrained`).
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
@@ -264,6 +266,24 @@ class LatentDecoder(nn.Module):
                 "the decoder does not fit this environment: " + "; ".join(problems) + ". Use a decoder trained on "
                 "observables this task provides (`mocap-hierarchy decoder info FILE` lists them)"
             )
+
+    def behaviour_sha256(self) -> str:
+        """SHA-256 of what decides the decoder's actions: weights (as float32), normaliser and spec.
+
+        The file's own SHA-256 also covers its provenance (a model card, a date); this one does
+        not, so a decoder re-packaged with another card, or loaded from a float32 or float16 copy
+        of the same float16 weights, keeps its identity.
+        """
+        digest = hashlib.sha256()
+        behaviour = {k: v for k, v in asdict(self.spec).items() if k != "provenance"}
+        digest.update(json.dumps(behaviour, sort_keys=True).encode())
+        tensors = {f"net.{k}": v for k, v in self.net.state_dict().items()}
+        tensors["observation_mean"] = self.observation_mean
+        tensors["observation_std"] = self.observation_std
+        for name in sorted(tensors):
+            digest.update(name.encode())
+            digest.update(tensors[name].detach().cpu().float().contiguous().numpy().tobytes())
+        return digest.hexdigest()
 
     # Files -------------------------------------------------------------------
 

@@ -15,8 +15,9 @@ for the high level).
 The file (one ``.safetensors``, defined only here): tensors ``net.*`` (the
 MLP), ``observation_mean`` and ``observation_std`` (the decoder's own
 normaliser, copied), and a JSON :class:`LatentPriorSpec` under the metadata key
-``mocap_hierarchy``. It names the SHA-256 of the decoder file it was fitted
-for; using it with another decoder is refused. Priors of the shipped decoders
+``mocap_hierarchy``. It names the behaviour SHA-256 of the decoder it was fitted
+for (:meth:`hierarchy.decoder.LatentDecoder.behaviour_sha256`: weights, normaliser
+and spec, not the model card); using it with another decoder is refused. Priors of the shipped decoders
 sit in ``hierarchy/pretrained/priors/NAME.safetensors`` and load by the
 decoder's name. Loading reads tensors and JSON only.
 """
@@ -57,13 +58,13 @@ class LatentPriorSpec:
         latent_size: Size of ``z``.
         hidden_layers: Hidden sizes of the MLP.
         activation: Hidden activation, a key of ``foundation.networks.ACTIVATIONS``.
-        decoder_sha256: SHA-256 of the decoder file the prior was fitted for.
+        decoder_behaviour_sha256: :meth:`LatentDecoder.behaviour_sha256` of the decoder it was fitted for.
         provenance: How it was fitted: policy, snippets, episodes, noise, steps, loss.
     """
 
     observation_sizes: dict[str, int]
     latent_size: int
-    decoder_sha256: str
+    decoder_behaviour_sha256: str
     hidden_layers: tuple[int, ...] = (256, 256)
     activation: str = "elu"
     provenance: dict[str, Any] = field(default_factory=dict)
@@ -113,10 +114,10 @@ class LatentPrior(nn.Module):
             self.net.load_state_dict(dict(state_dict))
 
     @classmethod
-    def for_decoder(cls, decoder: LatentDecoder, decoder_sha256: str, **spec_fields: Any) -> LatentPrior:
+    def for_decoder(cls, decoder: LatentDecoder, **spec_fields: Any) -> LatentPrior:
         """An untrained prior over ``decoder``'s observations and latent (trainable until :meth:`freeze`)."""
         spec = LatentPriorSpec(
-            dict(decoder.spec.observation_sizes), decoder.spec.latent_size, decoder_sha256, **spec_fields
+            dict(decoder.spec.observation_sizes), decoder.spec.latent_size, decoder.behaviour_sha256(), **spec_fields
         )
         return cls(spec, decoder.observation_mean.cpu(), decoder.observation_std.cpu())
 
@@ -137,8 +138,8 @@ class LatentPrior(nn.Module):
         z = out.cpu().numpy()
         return z[0] if flat.ndim == 1 else z
 
-    def check_fits(self, decoder: LatentDecoder, decoder_sha256: str | None = None) -> None:
-        """Refuses a decoder with other observations or latent size, or (given its SHA-256) another file.
+    def check_fits(self, decoder: LatentDecoder, same_weights: bool = True) -> None:
+        """Refuses a decoder with other observations or latent size, or (``same_weights``) other weights.
 
         Raises:
             DecoderMismatchError: Saying which part differs.
@@ -149,9 +150,9 @@ class LatentPrior(nn.Module):
             raise DecoderMismatchError(
                 f"the latent prior has {self.spec.latent_size} latents; the decoder {decoder.spec.latent_size}"
             )
-        if decoder_sha256 is not None and decoder_sha256 != self.spec.decoder_sha256:
+        if same_weights and decoder.behaviour_sha256() != self.spec.decoder_behaviour_sha256:
             raise DecoderMismatchError(
-                "the latent prior was fitted for another decoder file (SHA-256 differs); fit one for this "
+                "the latent prior was fitted for another decoder (its weights differ); fit one for this "
                 "decoder with `mocap-hierarchy decoder fit-prior`"
             )
 

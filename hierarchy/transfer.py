@@ -191,7 +191,7 @@ def train_transfer(
     decoder = resolve_decoder(decoder) if decoder is not None else None
     frozen = load_decoder(decoder) if decoder is not None else None
     decoder_sha = file_sha256(decoder) if decoder is not None else None
-    prior, prior_facts = _prior_for(latent_prior, frozen, decoder_sha)
+    prior, prior_facts = _prior_for(latent_prior, frozen)
     checkpoint = out / CHECKPOINT_DIR
     settings = _resume_settings(source, decoder_sha, config)
     if prior_facts is not None:  # absent otherwise, so runs from before priors existed still resume
@@ -213,14 +213,15 @@ def train_transfer(
                 venv.close()
                 raise stop.stop(f"transfer: stopped at step {model.num_timesteps}", "run the same command again")
 
-    path = _save_policy(out, model, source, decoder, decoder_sha, config, prior_facts)
+    behaviour_sha = frozen.behaviour_sha256() if frozen is not None else None
+    path = _save_policy(out, model, source, decoder, decoder_sha, config, prior_facts, behaviour_sha)
     _save_resume_files(model, checkpoint)
     venv.close()
     return path
 
 
 def _prior_for(
-    latent_prior: str | os.PathLike | None, decoder: LatentDecoder | None, decoder_sha: str | None
+    latent_prior: str | os.PathLike | None, decoder: LatentDecoder | None
 ) -> tuple[LatentPrior | None, dict[str, Any] | None]:
     """The prior to act around and the facts a policy records about it (``path``, ``name``, ``sha256``)."""
     if latent_prior is None:
@@ -229,7 +230,7 @@ def _prior_for(
         raise ValueError("a latent prior belongs to a decoder: pass --decoder too")
     path = resolve_prior(latent_prior)
     prior = load_latent_prior(path)
-    prior.check_fits(decoder, decoder_sha)
+    prior.check_fits(decoder)
     name = path.name.removesuffix(".safetensors") if path.resolve().parent == PRETRAINED_PRIORS else None
     return prior, {"path": str(path.resolve()), "name": name, "sha256": file_sha256(path)}
 
@@ -295,6 +296,7 @@ def _save_policy(
     decoder_sha: str | None,
     config: TransferConfig,
     prior_facts: dict[str, Any] | None = None,
+    behaviour_sha: str | None = None,
 ) -> Path:
     """Writes ``policy.safetensors`` (pickle-free) and ``transfer.json``."""
     decoder_facts = None
@@ -304,6 +306,8 @@ def _save_policy(
             # A shipped decoder is found by name on another installation, where its path differs.
             "name": pretrained_name(decoder),
             "sha256": decoder_sha,
+            # Accepted in place of the file's SHA-256 by evaluation: the same weights under another card.
+            "behaviour_sha256": behaviour_sha,
             "max_latent": config.max_latent,
             "steps_per_latent": config.steps_per_latent,
         }
@@ -381,8 +385,12 @@ def load_policy_and_decoder(
 ) -> tuple[TaskPolicy, LatentDecoder | None]:
     """A task policy and the decoder it drives (from its recorded path or shipped name unless given).
 
+    The file must be the one the policy was trained with, or (for policies that record it)
+    one with the same :meth:`LatentDecoder.behaviour_sha256`: the same weights under another
+    model card.
+
     Raises:
-        ValueError: The decoder file differs from the one the policy was trained with.
+        ValueError: The decoder differs from the one the policy was trained with.
     """
     policy = load_task_policy(policy_path)
     facts = policy.spec.decoder
@@ -396,9 +404,10 @@ def load_policy_and_decoder(
             path = resolve_decoder(facts["name"])
     if not path.is_file():
         raise FileNotFoundError(f"the policy drives decoder {path}, which does not exist; pass --decoder FILE")
-    if file_sha256(path) != facts["sha256"]:
+    decoder = load_decoder(path)
+    if file_sha256(path) != facts["sha256"] and decoder.behaviour_sha256() != facts.get("behaviour_sha256"):
         raise ValueError(f"{path} is not the decoder {policy_path} was trained with (SHA-256 differs)")
-    return policy, load_decoder(path)
+    return policy, decoder
 
 
 def _evaluation_source(

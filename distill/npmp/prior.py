@@ -21,11 +21,9 @@ from tqdm.auto import tqdm
 
 from distill.npmp.config import LatentPriorConfig
 from distill.npmp.model import NpmpPolicy
-from foundation.fingerprints import file_sha256
 from foundation.lockstep import Lockstep
 from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_prior import LatentPrior
-from hierarchy.pretrained import resolve_decoder
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 from tasks.walker import build_walker
 
@@ -151,7 +149,7 @@ def fit_latent_prior(
 
     Args:
         policy: The multi-clip policy whose decoder ``decoder`` is (possibly a float16 copy).
-        decoder: The decoder file or a shipped decoder's name; the prior records its SHA-256.
+        decoder: The decoder file or a shipped decoder's name; the prior records its behaviour SHA-256.
         snippets: Snippets to record on (the policy's training snippets).
         config: Recording and fitting settings.
         clips: Clip file of the snippets (default: the built-in synthetic library).
@@ -166,13 +164,11 @@ def fit_latent_prior(
     config = config or LatentPriorConfig()
     if not snippets:
         raise ValueError("name the snippets the multi-clip policy was trained on (--snippets or --data)")
-    path = resolve_decoder(decoder)
-    frozen = load_decoder(path)
+    frozen = load_decoder(decoder)
     check_same_decoder(policy, frozen)
     torch.manual_seed(config.seed)
     prior = LatentPrior.for_decoder(
         frozen,
-        file_sha256(path),
         hidden_layers=tuple(config.hidden_layers),
         # JSON-shaped (lists, not tuples), so the spec read back from the file equals this one.
         provenance=json.loads(json.dumps({"snippets": list(snippets), "config": asdict(config)})),

@@ -67,6 +67,11 @@ class VelocityControlConfig:
         command_seconds: A new command is drawn this often.
         max_steps: Episode length limit (2000 steps = 60 s).
         random_heading: Turn the walker to a uniform random heading at reset.
+        heading_spread: None (the seed): commanded headings are uniform over the
+            circle. A value ``h`` draws them within ``[-h, h]`` radians of the ``+x``
+            axis, the way the walker faces at reset unless ``random_heading``:
+            ``0`` commands speeds straight ahead only, a task whose skills (stand,
+            walk slow, walk fast) the synthetic decoders have without turning.
     """
 
     max_speed: float = 4.5
@@ -75,6 +80,7 @@ class VelocityControlConfig:
     command_seconds: float = 10.0
     max_steps: int = 2000
     random_heading: bool = False
+    heading_spread: float | None = None
 
 
 class VelocityControlEnv(WalkerTaskEnv):
@@ -84,6 +90,8 @@ class VelocityControlEnv(WalkerTaskEnv):
         self.config = config = config or VelocityControlConfig()
         if config.max_speed < 0 or config.eta <= 0 or config.command_seconds <= 0:
             raise ValueError("need max_speed >= 0, eta > 0 and command_seconds > 0")
+        if config.heading_spread is not None and not 0.0 <= config.heading_spread <= np.pi:
+            raise ValueError(f"heading_spread must be None or in [0, pi] radians, got {config.heading_spread}")
         velocity_sizes = {k: EXTRA_PROPRIOCEPTION[k] for k in VELOCITY_OBSERVABLES}
         super().__init__({**velocity_sizes, "target_obs": 4}, config.max_steps, walker)
         self._command_steps = max(1, round(config.command_seconds / CONTROL_TIMESTEP))
@@ -102,7 +110,11 @@ class VelocityControlEnv(WalkerTaskEnv):
 
     def _new_command(self) -> None:
         self._speed = float(self.np_random.uniform(0.0, self.config.max_speed))
-        self._heading = float(self.np_random.uniform(0.0, 2 * np.pi))
+        spread = self.config.heading_spread
+        if spread is None:
+            self._heading = float(self.np_random.uniform(0.0, 2 * np.pi))
+        else:
+            self._heading = float(self.np_random.uniform(-spread, spread))
         self._command_age = 0
 
     def _task_reset(self) -> tuple[np.ndarray, float]:

@@ -138,7 +138,7 @@ def test_latent_prior_regression_learns_a_known_map():
     observations = rng.normal(size=(2000, 6)).astype(np.float32)
     latents = np.tanh(observations @ rng.normal(size=(6, 3))).astype(np.float32)
     torch.manual_seed(0)
-    prior = LatentPrior.for_decoder(decoder, "0" * 64, hidden_layers=(64, 64))
+    prior = LatentPrior.for_decoder(decoder, hidden_layers=(64, 64))
     untrained = float(((prior.latents(observations) - latents) ** 2).mean())
     fit = regress_prior(prior, LatentSamples(observations, latents), LatentPriorConfig(steps=600, batch_size=128))
     assert fit["explained"] > 0.9 and fit["validation_mse"] < 0.1 * untrained, (fit, untrained)
@@ -147,14 +147,15 @@ def test_latent_prior_regression_learns_a_known_map():
 def test_fit_latent_prior_records_the_policy_and_refuses_another_decoder(distilled, tmp_path):
     from distill.npmp.config import LatentPriorConfig
     from distill.npmp.prior import fit_latent_prior
-    from foundation.fingerprints import file_sha256
     from hierarchy.latent_prior import load_latent_prior
 
     result, _ = distilled
     policy = load_policy(result.policy)
     config = LatentPriorConfig(episodes=2, n_envs=2, steps=50, batch_size=32, hidden_layers=(16,))
     prior, fit = fit_latent_prior(policy, result.decoder, ["SYN_stand-0-181"], config)
-    assert prior.spec.decoder_sha256 == file_sha256(result.decoder) and prior.spec.latent_size == SMALL.latent_size
+    decoder = load_decoder(result.decoder)
+    assert prior.spec.decoder_behaviour_sha256 == decoder.behaviour_sha256()
+    assert prior.spec.latent_size == SMALL.latent_size
     assert prior.spec.provenance["samples"] > 2 and prior.spec.provenance["snippets"] == ["SYN_stand-0-181"]
     assert np.isfinite(fit["validation_mse"])
     loaded = load_latent_prior(prior.save(tmp_path / "prior.safetensors"))

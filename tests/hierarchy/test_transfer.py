@@ -113,6 +113,21 @@ def test_evaluation_refuses_a_different_decoder(tmp_path):
         evaluate_transfer(policy_file, episodes=1, decoder_path=other)
 
 
+def test_evaluation_accepts_the_same_weights_under_another_card(tmp_path):
+    decoder = small_decoder()
+    decoder_file = decoder.save(tmp_path / "decoder.safetensors")
+    policy_file = train_transfer("velocity_control", tmp_path / "run", decoder_file, TINY, {"max_steps": 30}, False)
+    recarded = small_decoder()
+    recarded.spec = dataclasses.replace(recarded.spec, provenance={"model_card": {"summary": "re-carded"}})
+    recarded_file = recarded.save(tmp_path / "recarded.safetensors")
+    assert recarded_file.read_bytes() != decoder_file.read_bytes()
+    assert recarded.behaviour_sha256() == decoder.behaviour_sha256()
+    assert evaluate_transfer(policy_file, episodes=1, max_steps=5, decoder_path=recarded_file).episodes == 1
+    with torch.no_grad():
+        recarded.net[0].weight[0, 0] += 1e-3
+    assert recarded.behaviour_sha256() != decoder.behaviour_sha256()
+
+
 def test_resume_refuses_another_decoder_or_setting(tmp_path):
     decoder_file = small_decoder().save(tmp_path / "decoder.safetensors")
     out = tmp_path / "run"

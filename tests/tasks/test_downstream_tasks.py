@@ -45,6 +45,27 @@ def test_velocity_env_reward_and_command_schedule(clip_library):
     assert all(np.linalg.norm(t) < 4.5 for t in targets)
 
 
+def test_heading_spread_keeps_commands_within_it(clip_library):
+    def headings(spread):
+        env = VelocityControlEnv(VelocityControlConfig(command_seconds=0.03, heading_spread=spread))
+        env.reset(seed=0)
+        out = []
+        for _ in range(40):
+            _, _, terminated, _, info = env.step(np.zeros(56))
+            if terminated:
+                env.reset()
+            velocity = info["target_velocity"]
+            out.append(np.arctan2(velocity[1], velocity[0]) if np.linalg.norm(velocity) > 1e-9 else 0.0)
+        return np.array(out)
+
+    assert np.allclose(headings(0.0), 0.0)  # straight ahead only
+    narrow = headings(0.5)
+    assert np.all(np.abs(narrow) <= 0.5) and np.ptp(narrow) > 0.3
+    assert np.abs(headings(None)).max() > 2.0  # the seed's: any direction
+    with pytest.raises(ValueError, match="heading_spread"):
+        VelocityControlEnv(VelocityControlConfig(heading_spread=4.0))
+
+
 def test_velocity_env_ends_on_falls_and_time(clip_library):
     env = VelocityControlEnv(VelocityControlConfig(max_steps=3))
     env.reset(seed=0)
