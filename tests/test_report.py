@@ -158,6 +158,18 @@ def test_runs_on_different_decoders_are_settings_of_their_own_not_more_seeds(tmp
     assert list(bands["velocity_control on decoder [decoder=synthetic-v2]"]["mean"]) == [9.0]
 
 
+def test_runs_around_a_latent_prior_are_a_setting_of_their_own(tmp_path):
+    _transfer(tmp_path / "plain" / "seed0", "velocity_control", "synthetic-v2", 0, [(100, 1.0)])
+    _transfer(tmp_path / "prior" / "seed0", "velocity_control", "synthetic-v2", 0, [(100, 3.0)])
+    info_file = tmp_path / "prior" / "seed0" / "transfer.json"
+    info = json.loads(info_file.read_text())
+    info["decoder"]["latent_prior"] = {"path": "/site/prior.safetensors", "name": "synthetic-v2", "sha256": "0"}
+    info_file.write_text(json.dumps(info))
+    bands = transfer_bands(find_run_contents(tmp_path).transfer)
+    assert list(bands["velocity_control on decoder [decoder=synthetic-v2+prior]"]["mean"]) == [3.0]
+    assert list(bands["velocity_control on decoder [decoder=synthetic-v2]"]["mean"]) == [1.0]
+
+
 def test_noisy_and_deterministic_evaluations_pair_by_folder_and_init(run):
     contents = find_run_contents(run)
     pairs = evaluation_pairs(contents.evaluations)

@@ -108,7 +108,8 @@ class TransferRun:
         config: The run's PPO settings (``transfer.json``).
         variant: The decoder and PPO settings in which this run differs from others of its task,
             action space and task settings (set by :func:`find_run_contents`); empty when none.
-        decoder: The decoder's shipped name or file stem; empty on joint targets.
+        decoder: The decoder's shipped name or file stem (``+prior`` when the policy acted
+            around a latent prior); empty on joint targets.
     """
 
     folder: str
@@ -293,6 +294,8 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
         per_latent = int(config.get("steps_per_latent", 1) or 1)
         steps = [step * per_latent for step in steps]
     decoder_name = str(decoder.get("name") or Path(str(decoder.get("path", ""))).stem) if decoder else ""
+    if decoder.get("latent_prior"):  # acting around a latent prior is another action space
+        decoder_name += "+prior"
     seed = config.get("seed")
     if seed is None:  # a folder named seedN
         match = re.search(r"seed(\d+)", folder.name)
