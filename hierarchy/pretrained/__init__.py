@@ -8,6 +8,8 @@ downloaded: the files are package data.
 
 A name is any file stem here; a path that exists always wins over a name, so a
 user's own ``synthetic-v1`` file in the working folder is never shadowed.
+``priors/NAME.safetensors`` is the latent prior of decoder ``NAME`` where one is
+shipped (:mod:`hierarchy.latent_prior`; ``--latent-prior NAME``).
 """
 
 from __future__ import annotations
