@@ -158,17 +158,7 @@ class LatentDecoder(nn.Module):
         super().__init__()
         self.spec = spec
         self.net = decoder_network(spec)
-        mean = torch.as_tensor(np.asarray(observation_mean), dtype=torch.float32).reshape(-1)
-        std = torch.as_tensor(np.asarray(observation_std), dtype=torch.float32).reshape(-1)
-        for name, value in (("observation_mean", mean), ("observation_std", std)):
-            if value.shape != (spec.observation_size,):
-                raise DecoderFileError(
-                    f"{name} has {value.numel()} values; the observations have {spec.observation_size}"
-                )
-        if not torch.all(std > 0):
-            raise DecoderFileError("observation_std must be positive")
-        self.register_buffer("observation_mean", mean)
-        self.register_buffer("observation_std", std)
+        register_standardiser(self, observation_mean, observation_std, spec.observation_size, DecoderFileError)
         if state_dict is not None:
             self.net.load_state_dict(dict(state_dict))
         self.requires_grad_(False)
@@ -301,6 +291,29 @@ class LatentDecoder(nn.Module):
         tensors["observation_mean"] = self.observation_mean
         tensors["observation_std"] = self.observation_std
         return write_described(path, tensors, DECODER_FORMAT, DECODER_SCHEMA_VERSION, asdict(self.spec))
+
+
+def register_standardiser(
+    module: nn.Module,
+    mean: np.ndarray | torch.Tensor,
+    std: np.ndarray | torch.Tensor,
+    size: int,
+    error: type[Exception],
+) -> None:
+    """Registers float32 buffers ``observation_mean`` and ``observation_std`` of ``size`` values on ``module``.
+
+    Raises:
+        error: A statistic of another size, or a standard deviation that is not positive.
+    """
+    mean = torch.as_tensor(np.asarray(mean), dtype=torch.float32).reshape(-1)
+    std = torch.as_tensor(np.asarray(std), dtype=torch.float32).reshape(-1)
+    for name, value in (("observation_mean", mean), ("observation_std", std)):
+        if value.shape != (size,):
+            raise error(f"{name} has {value.numel()} values; the observations have {size}")
+    if not torch.all(std > 0):
+        raise error("observation_std must be positive")
+    module.register_buffer("observation_mean", mean)
+    module.register_buffer("observation_std", std)
 
 
 def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") -> LatentDecoder:

@@ -36,7 +36,7 @@ from torch import nn
 
 from foundation.described_file import read_described, write_described
 from foundation.networks import ACTIVATIONS, mlp
-from hierarchy.decoder import DecoderMismatchError, LatentDecoder
+from hierarchy.decoder import DecoderMismatchError, LatentDecoder, register_standardiser
 from hierarchy.pretrained import PRETRAINED_FOLDER
 
 PRIOR_FORMAT = "mocap_hierarchy.latent_prior"
@@ -104,12 +104,7 @@ class LatentPrior(nn.Module):
         super().__init__()
         self.spec = spec
         self.net = mlp(spec.observation_size, spec.hidden_layers, spec.latent_size, spec.activation, False)
-        mean = torch.as_tensor(np.asarray(observation_mean), dtype=torch.float32).reshape(-1)
-        std = torch.as_tensor(np.asarray(observation_std), dtype=torch.float32).reshape(-1)
-        if mean.shape != (spec.observation_size,) or std.shape != (spec.observation_size,):
-            raise LatentPriorFileError(f"the observation statistics must have {spec.observation_size} values")
-        self.register_buffer("observation_mean", mean)
-        self.register_buffer("observation_std", std)
+        register_standardiser(self, observation_mean, observation_std, spec.observation_size, LatentPriorFileError)
         if state_dict is not None:
             self.net.load_state_dict(dict(state_dict))
 

@@ -235,6 +235,18 @@ def _prior_for(
     return prior, {"path": str(path.resolve()), "name": name, "sha256": file_sha256(path)}
 
 
+def _recorded_file(
+    facts: dict[str, Any], override: str | os.PathLike | None, resolve: Callable[[str | os.PathLike], Path]
+) -> Path:
+    """Where a file a policy recorded is now: the caller's override, the recorded path, or its shipped name."""
+    if override is not None:
+        return resolve(override)
+    path = Path(facts["path"])
+    if not path.is_file() and facts.get("name"):
+        return resolve(facts["name"])
+    return path
+
+
 def load_policy_prior(
     policy: TaskPolicy, decoder: LatentDecoder | None, prior_path: str | os.PathLike | None = None
 ) -> LatentPrior | None:
@@ -252,12 +264,7 @@ def load_policy_prior(
     facts = (policy.spec.decoder or {}).get("latent_prior")
     if facts is None or decoder is None:
         return None
-    if prior_path is not None:
-        path = resolve_prior(prior_path)
-    else:
-        path = Path(facts["path"])
-        if not path.is_file() and facts.get("name"):
-            path = resolve_prior(facts["name"])
+    path = _recorded_file(facts, prior_path, resolve_prior)
     if not path.is_file():
         raise FileNotFoundError(f"the policy acts around latent prior {path}, which does not exist; pass its file")
     if file_sha256(path) != facts["sha256"]:
@@ -396,12 +403,7 @@ def load_policy_and_decoder(
     facts = policy.spec.decoder
     if facts is None:
         return policy, None
-    if decoder_path is not None:
-        path = resolve_decoder(decoder_path)
-    else:
-        path = Path(facts["path"])
-        if not path.is_file() and facts.get("name"):
-            path = resolve_decoder(facts["name"])
+    path = _recorded_file(facts, decoder_path, resolve_decoder)
     if not path.is_file():
         raise FileNotFoundError(f"the policy drives decoder {path}, which does not exist; pass --decoder FILE")
     decoder = load_decoder(path)
