@@ -34,15 +34,15 @@ import numpy as np
 import torch
 from torch import nn
 
+import hierarchy.pretrained as pretrained
 from foundation.described_file import read_described, write_described
 from foundation.networks import ACTIVATIONS, mlp
 from hierarchy.decoder import DecoderMismatchError, LatentDecoder, register_standardiser
-from hierarchy.pretrained import PRETRAINED_FOLDER
 
 PRIOR_FORMAT = "mocap_hierarchy.latent_prior"
 PRIOR_SCHEMA_VERSION = 1
-PRETRAINED_PRIORS = PRETRAINED_FOLDER / "priors"
-"""Where the priors of shipped decoders live, one ``NAME.safetensors`` per decoder name."""
+PRIORS_SUBFOLDER = "priors"
+"""Where, inside the shipped decoders' folder, their priors live: one ``NAME.safetensors`` per decoder name."""
 
 
 class LatentPriorFileError(ValueError):
@@ -164,13 +164,20 @@ def resolve_prior(source: str | os.PathLike) -> Path:
     path = Path(source)
     if path.exists():
         return path
-    shipped = PRETRAINED_PRIORS / f"{source}.safetensors"
-    return shipped if shipped.is_file() else path
+    shipped = shipped_priors().get(str(source))
+    return shipped if shipped is not None else path
 
 
-def shipped_prior_names() -> list[str]:
-    """Names of the shipped decoders that come with a prior."""
-    return sorted(p.name.removesuffix(".safetensors") for p in PRETRAINED_PRIORS.glob("*.safetensors"))
+def shipped_priors() -> dict[str, Path]:
+    """``{decoder name: prior file}`` of the shipped decoders that come with a prior."""
+    folder = pretrained.PRETRAINED_FOLDER / PRIORS_SUBFOLDER
+    return {p.name.removesuffix(".safetensors"): p for p in sorted(folder.glob("*.safetensors"))}
+
+
+def shipped_prior_name(path: str | os.PathLike) -> str | None:
+    """The decoder name under which ``path`` is shipped, if it is a shipped prior."""
+    resolved = Path(path).resolve()
+    return next((name for name, file in shipped_priors().items() if file.resolve() == resolved), None)
 
 
 def load_latent_prior(source: str | os.PathLike, device: str | torch.device = "cpu") -> LatentPrior:
@@ -180,7 +187,7 @@ def load_latent_prior(source: str | os.PathLike, device: str | torch.device = "c
         LatentPriorFileError: Missing file, another format, a newer schema or corrupt content.
     """
     path = resolve_prior(source)
-    shipped = ", ".join(shipped_prior_names()) or "none"
+    shipped = ", ".join(shipped_priors()) or "none"
     description, tensors = read_described(
         path,
         PRIOR_FORMAT,

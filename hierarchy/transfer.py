@@ -36,7 +36,7 @@ from foundation.resume import check_same_settings, settings_record
 from foundation.sb3 import PpoSettings, build_ppo, load_ppo, resumable_logger, save_sb3
 from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
-from hierarchy.latent_prior import PRETRAINED_PRIORS, LatentPrior, load_latent_prior, resolve_prior
+from hierarchy.latent_prior import LatentPrior, load_latent_prior, resolve_prior, shipped_prior_name
 from hierarchy.pretrained import pretrained_name, resolve_decoder
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
 from hierarchy.transfer_config import RESUME_FREE_FIELDS, TransferConfig  # light module; re-exported here
@@ -231,8 +231,7 @@ def _prior_for(
     path = resolve_prior(latent_prior)
     prior = load_latent_prior(path)
     prior.check_fits(decoder)
-    name = path.name.removesuffix(".safetensors") if path.resolve().parent == PRETRAINED_PRIORS else None
-    return prior, {"path": str(path.resolve()), "name": name, "sha256": file_sha256(path)}
+    return prior, {"path": str(path.resolve()), "name": shipped_prior_name(path), "sha256": file_sha256(path)}
 
 
 def _recorded_file(

@@ -62,10 +62,12 @@ def add_commands(subparsers: LazySubParsers) -> None:
 
 def _list(args: argparse.Namespace) -> None:
     from hierarchy.decoder import load_decoder
+    from hierarchy.latent_prior import shipped_priors
     from hierarchy.model_card import card_of
     from hierarchy.pretrained import names_hint, pretrained_decoders
 
     shipped = pretrained_decoders()
+    with_prior = set(shipped_priors())
     if not shipped:
         print(names_hint())
         return
@@ -73,7 +75,8 @@ def _list(args: argparse.Namespace) -> None:
         card = card_of(load_decoder(path)) or {}
         fraction = card.get("multi_clip", {}).get("fraction", {}).get("normalized_reward")
         scored = f"; multi-clip policy at {fraction:.2f} of its experts' reward" if fraction is not None else ""
-        print(f"{name}: {card.get('summary', 'no model card')}{scored}  ({path.stat().st_size / 1e6:.1f} MB)")
+        prior = f"; latent prior: --latent-prior {name}" if name in with_prior else ""
+        print(f"{name}: {card.get('summary', 'no model card')}{scored}{prior}  ({path.stat().st_size / 1e6:.1f} MB)")
 
 
 def _info(args: argparse.Namespace) -> None:

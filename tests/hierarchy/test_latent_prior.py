@@ -119,3 +119,24 @@ def test_transfer_records_the_prior_and_evaluation_uses_it(tmp_path):
     LatentPrior.for_decoder(small_decoder(), hidden_layers=(8,)).save(prior_file)
     with pytest.raises(ValueError, match="latent prior the policy was trained with"):
         evaluate_transfer(policy_file, episodes=1, max_steps=5)
+
+
+def test_a_shipped_prior_loads_by_name_and_policies_find_it_after_the_folder_moves(tmp_path, monkeypatch):
+    import shutil
+
+    import hierarchy.pretrained as pretrained
+
+    folder = tmp_path / "pretrained"
+    (folder / "priors").mkdir(parents=True)
+    monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", folder)
+    small_decoder().save(folder / "tiny-v1.safetensors")
+    small_prior().save(folder / "priors" / "tiny-v1.safetensors")
+    assert load_latent_prior("tiny-v1").spec == small_prior().spec
+    policy_file = train_transfer(
+        "velocity_control", tmp_path / "run", "tiny-v1", TINY, {"max_steps": 30}, progress=False, latent_prior="tiny-v1"
+    )
+    assert load_task_policy(policy_file).spec.decoder["latent_prior"]["name"] == "tiny-v1"
+    moved = tmp_path / "elsewhere"
+    shutil.move(folder, moved)
+    monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", moved)
+    assert evaluate_transfer(policy_file, episodes=1, max_steps=5).episodes == 1

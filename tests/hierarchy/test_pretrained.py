@@ -121,9 +121,9 @@ def test_the_shipped_synthetic_decoders_fit_the_tasks_and_carry_their_cards(name
 
 def test_the_shipped_prior_fits_synthetic_v2_and_keeps_the_walker_up_longer_than_z_zero():
     from hierarchy import LatentActionEnv
-    from hierarchy.latent_prior import load_latent_prior, shipped_prior_names
+    from hierarchy.latent_prior import load_latent_prior, shipped_priors
 
-    assert "synthetic-v2" in shipped_prior_names()
+    assert "synthetic-v2" in shipped_priors()
     decoder, prior = load_decoder("synthetic-v2"), load_latent_prior("synthetic-v2")
     prior.check_fits(decoder)  # the same weights it was fitted for
     assert prior.spec.provenance["fit"]["explained"] > 0.7
