@@ -8,8 +8,10 @@ To compare like with like, the plain arm replays the joint targets the latent
 arm applied, from the same seeds: both arms simulate the identical trajectory,
 so the difference is the wrapper (decoding and bookkeeping), not different
 physics. Trials alternate between the arms; the ratio of medians is the overhead.
+With ``--latent-prior`` the latent arm also acts around a latent prior (a random one
+of the shipped prior's size, 205 -> 256 -> 256 -> 60), evaluated at every step.
 
-Run: python benchmarks/latent_overhead.py [--steps 200] [--trials 5]
+Run: python benchmarks/latent_overhead.py [--steps 200] [--trials 5] [--latent-prior]
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ import torch
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 import tasks
-from hierarchy import DecoderSpec, LatentActionVecEnv, LatentDecoder
+from hierarchy import DecoderSpec, LatentActionVecEnv, LatentDecoder, LatentPrior
 from tasks.observables import DECODER, PROPRIOCEPTION
 
 
@@ -63,13 +65,15 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=200, help="vectorised steps per trial")
     parser.add_argument("--trials", type=int, default=5)
     parser.add_argument("--torch-threads", type=int, default=0, help="torch CPU threads (0: torch's default)")
+    parser.add_argument("--latent-prior", action="store_true", help="the latent arm acts around a latent prior too")
     args = parser.parse_args()
     if args.torch_threads > 0:
         torch.set_num_threads(args.torch_threads)
 
     decoder = seed_sized_decoder()
     plain = DummyVecEnv([lambda: tasks.make(args.task)] * args.envs)
-    latent = LatentActionVecEnv(DummyVecEnv([lambda: tasks.make(args.task)] * args.envs), decoder)
+    prior = LatentPrior.for_decoder(decoder, hidden_layers=(256, 256)).freeze() if args.latent_prior else None
+    latent = LatentActionVecEnv(DummyVecEnv([lambda: tasks.make(args.task)] * args.envs), decoder, prior=prior)
     latents = np.random.default_rng(0).uniform(-1, 1, size=(args.steps, args.envs, 60)).astype(np.float32)
     _, actions = run_latent(latent, latents[:20])  # warm-up
     run_plain(plain, actions)
@@ -84,7 +88,7 @@ def main() -> None:
         f"torch threads {torch.get_num_threads()}"
     )
     print(f"without decoder: {plain_rate:8.0f} env steps/s")
-    print(f"with decoder:    {latent_rate:8.0f} env steps/s")
+    print(f"with decoder{' and prior' if prior is not None else ''}: {latent_rate:8.0f} env steps/s")
     print(f"ratio with/without: {latent_rate / plain_rate:.3f} ({(1 - latent_rate / plain_rate) * 100:.1f}% slower)")
 
 

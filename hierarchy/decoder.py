@@ -220,7 +220,11 @@ class LatentDecoder(nn.Module):
         Returns:
             ``(action_size,)`` or ``(N, action_size)`` float64 actions.
         """
-        flat = self.flatten(observations)
+        return self.decode_flat(self.flatten(observations), z)
+
+    @torch.inference_mode()
+    def decode_flat(self, flat: np.ndarray, z: np.ndarray) -> np.ndarray:
+        """:meth:`decode` of observations already flattened by :meth:`flatten`."""
         z = np.asarray(z, dtype=np.float32)
         if z.shape[-1:] != (self.spec.latent_size,):
             raise DecoderMismatchError(f"z has shape {z.shape}; the decoder's latent size is {self.spec.latent_size}")

@@ -71,11 +71,11 @@ class _Latents:
             prior.check_fits(decoder)
         self.decoder, self.prior, self.space = decoder, prior, space
 
-    def __call__(self, observation: Mapping[str, np.ndarray], action: np.ndarray) -> np.ndarray:
+    def __call__(self, flat_observation: np.ndarray, action: np.ndarray) -> np.ndarray:
+        """``z`` for the decoder's flat observation (:meth:`LatentDecoder.flatten`) and the action."""
         if self.prior is None:
             return action
-        mean = self.prior.latents(self.decoder.flatten(observation))
-        return np.clip(mean + action, self.space.low, self.space.high).astype(np.float32)
+        return np.clip(self.prior.latents(flat_observation) + action, self.space.low, self.space.high)
 
 
 def _action_bounds(decoder: LatentDecoder, space: gym.Space) -> tuple[np.ndarray, np.ndarray]:
@@ -137,8 +137,9 @@ class LatentActionEnv(gym.Wrapper):
         action = _checked_latent(action, self.action_space)
         total = 0.0
         for _ in range(self.steps_per_latent):
-            z = self._latents(self._observation, action)
-            low_level = np.clip(self.decoder.decode(self._observation, z), self._low, self._high)
+            flat = self.decoder.flatten(self._observation)
+            z = self._latents(flat, action)
+            low_level = np.clip(self.decoder.decode_flat(flat, z), self._low, self._high)
             observation, reward, terminated, truncated, info = self.env.step(low_level)
             self._observation = observation
             total += float(reward)
@@ -203,8 +204,9 @@ class LatentActionVecEnv(VecEnvWrapper):
         ended = np.zeros(self.num_envs, dtype=bool)
         final_infos: list[dict] = [{} for _ in range(self.num_envs)]
         for _ in range(self.steps_per_latent):
-            z = self._latents(self._observation, self._latent)
-            low_level = np.clip(self.decoder.decode(self._observation, z), self._low, self._high)
+            flat = self.decoder.flatten(self._observation)
+            z = self._latents(flat, self._latent)
+            low_level = np.clip(self.decoder.decode_flat(flat, z), self._low, self._high)
             observation, rewards, dones, infos = self.venv.step(low_level)
             assert isinstance(observation, dict)
             self._observation = observation

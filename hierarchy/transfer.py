@@ -268,9 +268,7 @@ def load_policy_prior(
         raise FileNotFoundError(f"the policy acts around latent prior {path}, which does not exist; pass its file")
     if file_sha256(path) != facts["sha256"]:
         raise ValueError(f"{path} is not the latent prior the policy was trained with (SHA-256 differs)")
-    prior = load_latent_prior(path)
-    prior.check_fits(decoder)
-    return prior
+    return load_latent_prior(path)  # the latent-action env checks that it fits the decoder
 
 
 def _resume_settings(source: TaskSource, decoder_sha: str | None, config: TransferConfig) -> dict[str, Any]:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 import torch
@@ -95,11 +95,11 @@ def record_latents(
             rows = list(lockstep.active)
             batch = lockstep.batch(keys)
             _, z = policy.act_batch(batch, z_previous[rows])
-            flat = decoder.flatten({k: batch[k] for k in decoder.spec.observation_keys})
+            flat = decoder.flatten(batch)
             observations.append(flat)
             latents.append(z)
             noisy = z + rng.normal(0.0, config.latent_noise, z.shape).astype(np.float32)
-            actions = np.clip(decoder.decode({k: batch[k] for k in decoder.spec.observation_keys}, noisy), -1.0, 1.0)
+            actions = np.clip(decoder.decode_flat(flat, noisy), -1.0, 1.0)
             z_previous[rows] = z
             for transition in lockstep.step(actions):
                 if transition.done:
@@ -167,14 +167,10 @@ def fit_latent_prior(
     frozen = load_decoder(decoder)
     check_same_decoder(policy, frozen)
     torch.manual_seed(config.seed)
-    prior = LatentPrior.for_decoder(
-        frozen,
-        hidden_layers=tuple(config.hidden_layers),
-        # JSON-shaped (lists, not tuples), so the spec read back from the file equals this one.
-        provenance=json.loads(json.dumps({"snippets": list(snippets), "config": asdict(config)})),
-    )
+    prior = LatentPrior.for_decoder(frozen, hidden_layers=tuple(config.hidden_layers))
     samples = record_latents(policy, snippets, config, clips=clips, progress=progress)
     fit = regress_prior(prior, samples, config, progress=progress)
-    provenance = {**prior.spec.provenance, "samples": len(samples.latents), "fit": fit}
-    prior.spec = type(prior.spec)(**{**asdict(prior.spec), "provenance": provenance})
+    provenance = {"snippets": list(snippets), "config": asdict(config), "samples": len(samples.latents), "fit": fit}
+    # JSON-shaped (lists, not tuples), so the spec read back from the file equals this one.
+    prior.spec = replace(prior.spec, provenance=json.loads(json.dumps(provenance)))
     return prior.freeze(), fit
