@@ -30,6 +30,11 @@ def figures(summary: dict) -> dict[str, float]:
     out["velocity control on the decoder: return"] = velocity["mean_return"]
     out["velocity control on the decoder: reward per step"] = velocity["reward_per_step"]
     out["velocity control on joint targets: return"] = velocity["baseline_mean_return"]
+    if "speed_slope" in velocity:  # summaries since the quickstart measures speed tracking
+        out["velocity control on the decoder: standing still's reward per step"] = velocity["still_reward_per_step"]
+        out["velocity control on the decoder: speed slope"] = velocity["speed_slope"]
+        rise = velocity["training_return_last"] - velocity["training_return_first"]
+        out["velocity control on the decoder: training return, last - first update"] = rise
     return out
 
 

@@ -33,19 +33,13 @@ from tqdm.auto import tqdm
 
 from foundation.config_cli import file_in_folder
 from hierarchy.task_policy import load_task_policy
-from hierarchy.transfer import POLICY_FILE
-from mocap_hierarchy.record import build_rollout
+from hierarchy.transfer import POLICY_FILE, track_speed
+from tasks.downstream.speed_tracking import SpeedEpisode, SpeedTrackingSummary, episode_points, run_episode, summarise
 from tasks.walker import CONTROL_TIMESTEP
 
 
-def track(policy_path: Path, steps: int, seed: int) -> dict[str, np.ndarray]:
-    """One deterministic episode of a task policy (see :func:`episode`)."""
-    env, act, _ = build_rollout("velocity_control", str(policy_path), {"max_steps": steps})
-    return episode(env, act, seed)
-
-
-def track_zero_latent(decoder: str, task_overrides: dict, steps: int, seed: int) -> dict[str, np.ndarray]:
-    """One episode of a decoder held at z = 0: what no high-level policy is worth (see :func:`episode`)."""
+def track_zero_latent(decoder: str, task_overrides: dict, steps: int, seed: int) -> SpeedEpisode:
+    """One episode of a decoder held at z = 0: what no high-level policy is worth."""
     import tasks
     from hierarchy import LatentActionEnv, load_decoder
 
@@ -53,79 +47,14 @@ def track_zero_latent(decoder: str, task_overrides: dict, steps: int, seed: int)
         tasks.make("velocity_control", **{**task_overrides, "max_steps": steps}), load_decoder(decoder)
     )
     zero = np.zeros(env.action_space.shape)
-    return episode(env, lambda observation: zero, seed)
+    return run_episode(env, lambda observation: zero, seed)
 
 
-def episode(env, act, seed: int) -> dict[str, np.ndarray]:
-    """One episode, read at every high-level step.
-
-    Returns commanded and actual horizontal velocity ``(T, 2)``, the reward per control
-    step ``(T,)`` (a policy holding each latent for ``k`` steps earns ``k`` rewards at
-    once), ``eta`` and ``k``.
-    """
-    task = env.unwrapped
-    k = getattr(env, "steps_per_latent", 1)
-    observation, _ = env.reset(seed=seed)
-    commanded, actual, rewards = [], [], []
-    done = False
-    while not done:
-        observation, reward, terminated, truncated, _ = env.step(act(observation))
-        commanded.append(task.target_velocity.copy())
-        actual.append(task.torso_velocity())
-        rewards.append(float(reward) / k)
-        done = terminated or truncated
-    return {
-        "commanded": np.array(commanded),
-        "actual": np.array(actual),
-        "rewards": np.array(rewards),
-        "eta": np.array(task.config.eta),
-        "steps_per_latent": np.array(k),
-    }
-
-
-def along_command(run: dict[str, np.ndarray]) -> np.ndarray:
-    """Per step, the actual velocity's component along the commanded direction (0 where nothing is commanded)."""
-    speed_c = np.linalg.norm(run["commanded"], axis=1)
-    unit = np.divide(
-        run["commanded"], speed_c[:, None], out=np.zeros_like(run["commanded"]), where=speed_c[:, None] > 0
-    )
-    return (run["actual"] * unit).sum(axis=1)
-
-
-def episode_points(episodes: list[dict[str, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    """One point per episode: mean commanded speed and mean speed along the command."""
-    commanded_speed = np.array([np.linalg.norm(e["commanded"], axis=1).mean() for e in episodes])
-    return commanded_speed, np.array([along_command(e).mean() for e in episodes])
-
-
-def summary(episodes: list[dict[str, np.ndarray]]) -> dict[str, float]:
-    """Steps, speed-following slope and correlation, heading cosine, reward per step, standing still's reward."""
-    commanded_speed, speed_along = episode_points(episodes)
-    cosines, rewards, still = [], [], []
-    for e in episodes:
-        speed_c, speed_a = np.linalg.norm(e["commanded"], axis=1), np.linalg.norm(e["actual"], axis=1)
-        moving = (speed_c > 0.2) & (speed_a > 0.2)
-        cosines.append((e["commanded"] * e["actual"]).sum(axis=1)[moving] / (speed_c * speed_a)[moving])
-        rewards.append(e["rewards"])
-        still.append(np.exp(-((speed_c / float(e["eta"])) ** 2)))
-    spread = commanded_speed.std() > 0 and speed_along.std() > 0
-    cosine = np.concatenate(cosines)
-    return {
-        "episodes": len(episodes),
-        "steps": float(np.mean([len(e["rewards"]) * int(e["steps_per_latent"]) for e in episodes])),
-        "slope": float(np.polyfit(commanded_speed, speed_along, 1)[0]) if spread else float("nan"),
-        "correlation": float(np.corrcoef(commanded_speed, speed_along)[0, 1]) if spread else float("nan"),
-        "heading_cosine": float(cosine.mean()) if cosine.size else float("nan"),
-        "reward_per_step": float(np.concatenate(rewards).mean()),
-        "still_reward_per_step": float(np.concatenate(still).mean()),
-    }
-
-
-def table_row(label: str, stats: dict[str, float]) -> str:
-    """One printed line of :func:`summary`'s figures, under the header ``main`` prints."""
+def table_row(label: str, stats: SpeedTrackingSummary) -> str:
+    """One printed line of a summary's figures, under the header ``main`` prints."""
     return (
-        f"{label:<24}{stats['episodes']:>9}{stats['steps']:>7.0f}{stats['slope']:>7.2f}{stats['correlation']:>7.2f}"
-        f"{stats['heading_cosine']:>12.2f}{stats['reward_per_step']:>12.3f}{stats['still_reward_per_step']:>15.3f}"
+        f"{label:<24}{stats.episodes:>9}{stats.steps:>7.0f}{stats.slope:>7.2f}{stats.correlation:>7.2f}"
+        f"{stats.heading_cosine:>12.2f}{stats.reward_per_step:>12.3f}{stats.still_reward_per_step:>15.3f}"
     )
 
 
@@ -153,12 +82,12 @@ def main() -> None:
     runs = {}
     for label, folder in zip(labels, args.policies, strict=True):
         path = file_in_folder(folder, POLICY_FILE)
-        runs[label] = [track(path, args.steps, seed) for seed in tqdm(seeds, desc=label, unit="episode")]
+        runs[label] = track_speed(path, args.episodes, args.seed, max_steps=args.steps, progress=True)
     reference = None
     if args.zero_latent is not None:
         overrides = load_task_policy(file_in_folder(args.policies[0], POLICY_FILE)).spec.task_overrides
         bar = tqdm(seeds, desc="z = 0", unit="episode")
-        reference = summary([track_zero_latent(args.zero_latent, overrides, args.steps, seed) for seed in bar])
+        reference = summarise([track_zero_latent(args.zero_latent, overrides, args.steps, seed) for seed in bar])
 
     import matplotlib
 
@@ -173,18 +102,18 @@ def main() -> None:
         f"{'reward/step':>12}{'standing still':>15}"
     )
     for (over_time, scatter), (label, episodes) in zip(axes, runs.items(), strict=True):
-        stats = summary(episodes)
+        stats = summarise(episodes)
         print(table_row(label, stats))
         first = episodes[0]
-        seconds = np.arange(len(first["rewards"])) * CONTROL_TIMESTEP * int(first["steps_per_latent"])
-        over_time.plot(seconds, np.linalg.norm(first["commanded"], axis=1), label="commanded speed", color="black")
-        over_time.plot(seconds, np.linalg.norm(first["actual"], axis=1), label="actual speed", color="tab:blue")
-        over_time.plot(seconds, along_command(first), label="speed along the command", color="tab:orange")
+        seconds = np.arange(len(first.rewards)) * CONTROL_TIMESTEP * first.steps_per_latent
+        over_time.plot(seconds, np.linalg.norm(first.commanded, axis=1), label="commanded speed", color="black")
+        over_time.plot(seconds, np.linalg.norm(first.actual, axis=1), label="actual speed", color="tab:blue")
+        over_time.plot(seconds, first.speed_along_command(), label="speed along the command", color="tab:orange")
         over_time.set_ylabel("m/s")
         over_time.set_xlabel("seconds (first episode; it ends when the walker falls)")
         over_time.set_title(
-            f"{label}: reward/step {stats['reward_per_step']:.2f} "
-            f"(standing still {stats['still_reward_per_step']:.2f}), {stats['steps']:.0f} steps on average",
+            f"{label}: reward/step {stats.reward_per_step:.2f} "
+            f"(standing still {stats.still_reward_per_step:.2f}), {stats.steps:.0f} steps on average",
             fontsize=9,
         )
         over_time.legend(loc="upper right", fontsize=7)
@@ -195,9 +124,7 @@ def main() -> None:
         scatter.axhline(0, color="grey", linewidth=0.5)
         scatter.set_xlabel("commanded speed (m/s, episode mean)")
         scatter.set_ylabel("speed along the command")
-        scatter.set_title(
-            f"{len(episodes)} episodes: slope {stats['slope']:.2f}, r {stats['correlation']:.2f}", fontsize=9
-        )
+        scatter.set_title(f"{len(episodes)} episodes: slope {stats.slope:.2f}, r {stats.correlation:.2f}", fontsize=9)
         scatter.legend(loc="upper left", fontsize=7)
     if reference is not None:
         print(table_row(f"{args.zero_latent}, z = 0", reference) + "  (not drawn)")

@@ -25,7 +25,7 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
     from hierarchy.latent_prior import LatentPrior, load_latent_prior
     from hierarchy.task_policy import TaskPolicy, load_task_policy
-    from hierarchy.transfer import EvaluationSummary, evaluate_transfer, train_transfer
+    from hierarchy.transfer import EvaluationSummary, evaluate_transfer, track_speed, train_transfer
     from hierarchy.transfer_config import TransferConfig
 
 __all__ = [
@@ -43,6 +43,7 @@ __all__ = [
     "load_decoder",
     "load_latent_prior",
     "load_task_policy",
+    "track_speed",
     "train_transfer",
 ]
 
@@ -63,6 +64,7 @@ __getattr__, __dir__ = lazy_exports(
         "load_decoder": "hierarchy.decoder",
         "load_latent_prior": "hierarchy.latent_prior",
         "load_task_policy": "hierarchy.task_policy",
+        "track_speed": "hierarchy.transfer",
         "train_transfer": "hierarchy.transfer",
     },
 )

@@ -41,6 +41,7 @@ from hierarchy.pretrained import pretrained_name, resolve_decoder
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
 from hierarchy.transfer_config import RESUME_FREE_FIELDS, TransferConfig  # light module; re-exported here
 from tasks import registry
+from tasks.downstream.speed_tracking import SpeedEpisode, run_episode
 
 POLICY_FILE = "policy.safetensors"
 CHECKPOINT_DIR = "checkpoint"
@@ -410,22 +411,50 @@ def load_policy_and_decoder(
 
 
 def _evaluation_source(
-    task: str, overrides: dict[str, Any], max_steps: int | None, env_factory: Callable[[], gym.Env] | None
+    task: str, overrides: dict[str, Any], changes: dict[str, Any], env_factory: Callable[[], gym.Env] | None
 ) -> TaskSource:
-    """The task a policy file names, rebuilt by name, or the caller's factory."""
+    """The task a policy file names, rebuilt by name with its settings plus ``changes``, or the caller's factory."""
     if env_factory is not None:
-        if max_steps is not None:
-            raise ValueError("max_steps applies to registered tasks; build the limit into env_factory instead")
+        if changes:
+            raise ValueError(
+                f"task settings ({', '.join(changes)}) apply to registered tasks; build them into env_factory instead"
+            )
         return TaskSource.of(env_factory, name=task)
     if task not in registry.task_names():
         raise ValueError(
             f"the policy was trained on {task!r}, which is not a registered task here; register it with "
             "tasks.register(...) (or install the package that does), or pass env_factory"
         )
-    overrides = dict(overrides)
-    if max_steps is not None:
-        overrides["max_steps"] = max_steps
-    return TaskSource.of(task, overrides)
+    return TaskSource.of(task, {**overrides, **changes})
+
+
+def policy_env(
+    policy_path: str | os.PathLike,
+    decoder_path: str | os.PathLike | None = None,
+    task_changes: dict[str, Any] | None = None,
+    env_factory: Callable[[], gym.Env] | None = None,
+    latent_prior_path: str | os.PathLike | None = None,
+) -> tuple[TaskPolicy, gym.Env]:
+    """A task policy and the environment it acts in (its task and settings, decoder and latent prior).
+
+    Args:
+        policy_path: A ``policy.safetensors`` from :func:`train_transfer`.
+        decoder_path: Override of the decoder file's location (or a shipped decoder's name).
+        task_changes: Task settings to change from the recorded ones (registered tasks only).
+        env_factory: The factory a policy was trained with when its task is not registered.
+        latent_prior_path: Override of the latent prior file's location (policies trained around one).
+    """
+    policy, decoder = load_policy_and_decoder(policy_path, decoder_path)
+    spec = policy.spec
+    facts = spec.decoder or {}
+    env = make_task_env(
+        _evaluation_source(spec.task, spec.task_overrides, dict(task_changes or {}), env_factory),
+        decoder,
+        facts.get("max_latent", 3.0),
+        facts.get("steps_per_latent", 1),
+        load_policy_prior(policy, decoder, latent_prior_path),
+    )
+    return policy, env
 
 
 def evaluate_transfer(
@@ -452,18 +481,12 @@ def evaluate_transfer(
     """
     if episodes < 1:
         raise ValueError("episodes must be at least 1")
-    policy, decoder = load_policy_and_decoder(policy_path, decoder_path)
-    spec = policy.spec
-    facts = spec.decoder or {}
-    env = make_task_env(
-        _evaluation_source(spec.task, spec.task_overrides, max_steps, env_factory),
-        decoder,
-        facts.get("max_latent", 3.0),
-        facts.get("steps_per_latent", 1),
-        load_policy_prior(policy, decoder, latent_prior_path),
-    )
+    changes = {"max_steps": max_steps} if max_steps is not None else None
+    policy, env = policy_env(policy_path, decoder_path, changes, env_factory, latent_prior_path)
     returns, lengths = [], []
-    bar = tqdm(range(episodes), desc=f"evaluating on {spec.task} (deterministic)", unit="episode", disable=not progress)
+    bar = tqdm(
+        range(episodes), desc=f"evaluating on {policy.spec.task} (deterministic)", unit="episode", disable=not progress
+    )
     for episode in bar:
         observation, _ = env.reset(seed=seed + episode)
         total, length, done = 0.0, 0, False
@@ -476,7 +499,7 @@ def evaluate_transfer(
         returns.append(total)
         lengths.append(length)
     return EvaluationSummary(
-        task=spec.task,
+        task=policy.spec.task,
         episodes=episodes,
         mean_return=float(np.mean(returns)),
         std_return=float(np.std(returns)),
@@ -484,3 +507,40 @@ def evaluate_transfer(
         returns=returns,
         lengths=lengths,
     )
+
+
+def track_speed(
+    policy_path: str | os.PathLike,
+    episodes: int = 30,
+    seed: int = 1000,
+    max_steps: int | None = None,
+    progress: bool = False,
+    decoder_path: str | os.PathLike | None = None,
+    latent_prior_path: str | os.PathLike | None = None,
+) -> list[SpeedEpisode]:
+    """Runs a velocity-control policy deterministically and reads commanded against actual velocity.
+
+    Summarise the episodes with :func:`tasks.downstream.speed_tracking.summarise`.
+
+    Args:
+        policy_path: A ``policy.safetensors`` trained on a velocity-control task.
+        episodes: Episodes to run (seeds ``seed``, ``seed + 1``, ...).
+        seed: Seed of the first episode.
+        max_steps: Override of the task's episode limit.
+        progress: Show a progress bar over the episodes.
+        decoder_path: Override of the decoder file's location (or a shipped decoder's name).
+        latent_prior_path: Override of the latent prior file's location.
+
+    Raises:
+        TypeError: The policy's task is not velocity control.
+    """
+    if episodes < 1:
+        raise ValueError("episodes must be at least 1")
+    changes = {"max_steps": max_steps} if max_steps is not None else None
+    policy, env = policy_env(policy_path, decoder_path, changes, None, latent_prior_path)
+
+    def act(observation: dict[str, np.ndarray]) -> np.ndarray:
+        return policy.act({k: v[None] for k, v in observation.items()})[0]
+
+    bar = tqdm(range(episodes), desc="speed tracking (deterministic)", unit="episode", disable=not progress)
+    return [run_episode(env, act, seed + episode) for episode in bar]

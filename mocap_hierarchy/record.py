@@ -124,20 +124,11 @@ def _multi_clip(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
 
 
 def _task_policy(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
-    from hierarchy.transfer import TaskSource, load_policy_and_decoder, load_policy_prior, make_task_env
+    from hierarchy.transfer import policy_env
 
-    policy, decoder = load_policy_and_decoder(path)
-    spec = policy.spec
-    if task != spec.task:
-        raise ValueError(f"{path} was trained on task {spec.task!r}; record it with --task {spec.task}")
-    facts = spec.decoder or {}
-    env = make_task_env(
-        TaskSource.of(spec.task, {**spec.task_overrides, **overrides}),
-        decoder,
-        facts.get("max_latent", 3.0),
-        facts.get("steps_per_latent", 1),
-        load_policy_prior(policy, decoder),
-    )
+    policy, env = policy_env(path, task_changes=overrides)
+    if task != policy.spec.task:
+        raise ValueError(f"{path} was trained on task {policy.spec.task!r}; record it with --task {policy.spec.task}")
     return env, lambda observation: policy.act(_batched(observation))[0], None
 
 

@@ -43,11 +43,15 @@ class FakeStages:
     def __init__(self, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
         self.calls: Counter[str] = Counter()
         self.transfer_decoders: list[str] = []
+        self.transfer_priors: list[str | None] = []
         self.fail_in: str | None = None
         self.expert_status = "ok"
         shipped = tmp_path / "pretrained"
         shipped.mkdir()
         (shipped / "synthetic-v1.safetensors").write_text("a shipped decoder")
+        (shipped / "synthetic-v2.safetensors").write_text("another shipped decoder")
+        (shipped / "priors").mkdir()
+        (shipped / "priors" / "synthetic-v2.safetensors").write_text("the prior shipped with synthetic-v2")
         monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", shipped)
         monkeypatch.setattr(pipeline, "ensure_synthetic_library", lambda progress: tmp_path / "clips.h5")
         monkeypatch.setattr(pipeline, "list_clips", lambda library: {"SYN_stand": 181, "SYN_wave": 196})
@@ -94,10 +98,13 @@ class FakeStages:
             "fraction_of_experts": {"normalized_reward": 0.6, "normalized_length": 0.7, "snippets": 1},
         }
 
-    def _transfer(self, out: Path, decoder, config):
+    def _transfer(self, out: Path, decoder, prior, config):
         self._call("transfer_decoder" if decoder else "transfer_joints")
         if decoder:
             self.transfer_decoders.append(decoder)
+            self.transfer_priors.append(prior)
+        else:
+            assert prior is None  # joint targets have no latent to act around
         out.mkdir(parents=True, exist_ok=True)
         (out / "policy.safetensors").write_text("")
         (out / "progress.csv").write_text("")
@@ -174,26 +181,56 @@ def test_changed_settings_rerun_only_the_stages_they_feed(fakes, tmp_path):
     assert summary["seconds"] == summary["runs"][1]["seconds"]  # a new job: the first run had other settings
 
 
-def test_velocity_control_runs_on_the_shipped_decoder_and_the_summary_says_so(fakes, tmp_path, capsys):
+def test_velocity_control_runs_around_the_shipped_decoders_prior_and_the_summary_says_so(fakes, tmp_path, capsys):
     summary = run_quickstart(tiny(tmp_path))
-    shipped = str(tmp_path / "pretrained" / "synthetic-v1.safetensors")
-    assert fakes.transfer_decoders == [shipped]
-    assert summary["transfer_decoder"]["name"] == "synthetic-v1"
-    assert summary["verdicts"]["velocity_control"]["decoder"] == shipped
-    assert f"velocity control ran on the decoder synthetic-v1 ({shipped})" in capsys.readouterr().out
+    shipped = tmp_path / "pretrained"
+    assert fakes.transfer_decoders == [str(shipped / "synthetic-v2.safetensors")]
+    assert fakes.transfer_priors == [str(shipped / "priors" / "synthetic-v2.safetensors")]
+    assert summary["transfer_decoder"]["name"] == "synthetic-v2"
+    assert summary["transfer_prior"]["name"] == "shipped with synthetic-v2"
+    assert summary["verdicts"]["velocity_control"]["decoder"] == str(shipped / "synthetic-v2.safetensors")
+    out = capsys.readouterr().out
+    assert (
+        f"velocity control ran on the decoder synthetic-v2 ({shipped / 'synthetic-v2.safetensors'}), acting around "
+        f"the latent prior shipped with synthetic-v2 ({shipped / 'priors' / 'synthetic-v2.safetensors'})" in out
+    )
     # A longer distillation does not change the shipped decoder: velocity control is read, not rerun.
     summary = run_quickstart(tiny(tmp_path, distill_steps=1200))
     assert summary["runs"][1]["stages_run"] == ["distill", "plots"]
+    # Other commands are another task: both velocity-control runs run again (the fakes return the same
+    # results, so the stages after them are read).
+    summary = run_quickstart(tiny(tmp_path, distill_steps=1200, velocity_heading_spread=3.1416))
+    assert summary["runs"][2]["stages_run"] == ["transfer_decoder", "transfer_joints"]
+
+
+def test_without_a_shipped_prior_or_with_none_the_actions_are_latents(fakes, tmp_path):
+    summary = run_quickstart(tiny(tmp_path, transfer_decoder="synthetic-v1"))
+    assert summary["transfer_prior"] is None and fakes.transfer_priors == [None]
+    summary = run_quickstart(tiny(tmp_path, transfer_prior="none"))
+    assert summary["transfer_prior"] is None and fakes.transfer_priors == [None, None]
+    assert fakes.transfer_decoders[-1].endswith("synthetic-v2.safetensors")
+
+
+def test_a_prior_file_is_taken_and_a_missing_one_says_what_would_work(fakes, tmp_path):
+    prior = tmp_path / "my_prior.safetensors"
+    prior.write_text("a prior")
+    summary = run_quickstart(tiny(tmp_path, transfer_prior=str(prior)))
+    assert fakes.transfer_priors == [str(prior)] and summary["transfer_prior"]["name"] == "my_prior.safetensors"
+    with pytest.raises(FileNotFoundError, match=r"not a file; use --transfer-prior auto .*shipped with: synthetic-v2"):
+        run_quickstart(tiny(tmp_path, transfer_prior=str(tmp_path / "gone.safetensors")))
 
 
 def test_own_decoder_runs_velocity_control_on_the_distilled_one(fakes, tmp_path):
     summary = run_quickstart(tiny(tmp_path, transfer_decoder="own"))
     assert fakes.transfer_decoders == [summary["distill"]["decoder"]]
     assert summary["transfer_decoder"]["name"] == "distilled by this quickstart"
+    assert fakes.transfer_priors == [None]  # no prior ships with a decoder distilled here
 
 
 def test_an_unknown_transfer_decoder_says_what_would_work(fakes, tmp_path):
-    with pytest.raises(FileNotFoundError, match=r"shipped decoders: synthetic-v1\); use --transfer-decoder own"):
+    with pytest.raises(
+        FileNotFoundError, match=r"shipped decoders: synthetic-v1, synthetic-v2\); use --transfer-decoder own"
+    ):
         run_quickstart(tiny(tmp_path, transfer_decoder="synthetic-v9"))
 
 
@@ -226,9 +263,17 @@ def test_job_seconds_counts_the_runs_until_one_finished():
 
 
 def fabricated_summary(
-    expert_reward: float = 0.7, fraction: float = 0.6, decoder_return: float = 40.0, joints_return: float = 20.0
+    expert_reward: float = 0.7,
+    fraction: float = 0.6,
+    decoder_return: float = 40.0,
+    joints_return: float = 20.0,
+    speed: dict | None = None,
 ) -> dict:
+    """A summary as the quickstart writes it; without ``speed``, one from before speed tracking."""
     run = {"steps": 8192, "episodes": 5, "episode_limit": 500, "std_return": 1.0, "mean_length": 200.0}
+    decoder_run = {**run, "mean_return": decoder_return}
+    if speed is not None:
+        decoder_run.update(speed=speed, training_return_first=30.0, training_return_last=45.5)
     summary = {
         "playback": [{"snippet": "SYN_wave-0-196", "normalized_reward": 0.5, "normalized_length": 0.6}],
         "experts": [
@@ -243,7 +288,7 @@ def fabricated_summary(
             "fraction_of_experts": {"normalized_reward": fraction, "normalized_length": 0.8, "snippets": 1},
         },
         "transfer": {
-            "decoder": {**run, "mean_return": decoder_return},
+            "decoder": decoder_run,
             "joints": {**run, "mean_return": joints_return},
         },
         "recordings": {"decoder": "d.rrd", "joints": "j.rrd"},
@@ -290,6 +335,42 @@ def test_velocity_verdict_from_reward_per_step_and_the_baseline():
     velocity = fabricated_summary(decoder_return=150.0, joints_return=160.0)["verdicts"]["velocity_control"]
     assert velocity["verdict"] == "follows the command" and velocity["reward_per_step"] == 0.75
     assert velocity["against_baseline"] == "trails the joint-target baseline"
+
+
+def speed(slope: float, still: float = 0.56) -> dict:
+    return {
+        "episodes": 10,
+        "steps": 200.0,
+        "slope": slope,
+        "correlation": 0.7,
+        "heading_cosine": 0.9,
+        "reward_per_step": 0.0,
+        "still_reward_per_step": still,
+    }
+
+
+@pytest.mark.parametrize(
+    ("decoder_return", "slope", "verdict"),
+    [
+        (150.0, 0.6, "follows the command"),  # 0.75 per step, above standing still's 0.56
+        (120.0, 0.1, "earns more than standing still but does not choose its speed by the command yet"),
+        (120.0, math.nan, "earns more than standing still but does not choose its speed by the command yet"),
+        (100.0, 0.9, "does not follow the command yet (standing still would earn as much)"),  # 0.5 per step
+    ],
+)
+def test_velocity_verdict_needs_more_than_standing_still_and_a_speed_that_follows(decoder_return, slope, verdict):
+    velocity = fabricated_summary(decoder_return=decoder_return, speed=speed(slope))["verdicts"]["velocity_control"]
+    assert velocity["verdict"] == verdict
+    assert velocity["still_reward_per_step"] == 0.56 and velocity["follows_from_slope"] == 0.5
+    assert velocity["training_return_first"] == 30.0 and velocity["training_return_last"] == 45.5
+
+
+def test_printed_summary_shows_the_rise_and_the_speed_figures(capsys):
+    print_summary(fabricated_summary(decoder_return=120.0, speed=speed(0.12)))
+    out = capsys.readouterr().out
+    assert "training return (episode mean) from 30.0 at the first update to 45.5 at the last" in out
+    assert "slope 0.12 (r 0.70), heading cosine 0.90; standing still would earn 0.560 per step" in out
+    assert "(reward per step 0.600, standing still 0.560; speed slope 0.12, needs 0.5)" in out
 
 
 def test_printed_summary_says_the_verdicts(capsys):

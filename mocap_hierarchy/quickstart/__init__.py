@@ -12,11 +12,14 @@ Stages:
 4. dataset: roll the experts out into the rollout dataset (seed A.2);
 5. distill: the multi-clip policy and its frozen decoder file (seed B.2's
    objective; hidden layers shrunk to fit the budget), evaluated against the experts;
-6. transfer: velocity control trained with PPO on top of a decoder and, as
-   the baseline, on raw joint targets, each evaluated deterministically. The
-   decoder is the shipped ``synthetic-v1`` by default (``transfer_decoder``;
-   ``own`` takes the one stage 5 distilled), so the high-level policy rises on
-   skills trained far longer than the quickstart can; the summary names it;
+6. transfer: velocity control (commands straight ahead below 1.5 m/s by default,
+   the speeds the synthetic clips show) trained with PPO on top of a decoder and,
+   as the baseline, on raw joint targets, each evaluated deterministically for
+   return and commanded against actual speed. The decoder is the shipped
+   ``synthetic-v2`` by default, acting around the latent prior shipped with it
+   (``transfer_decoder``, ``transfer_prior``; ``own`` takes the one stage 5
+   distilled), so the high-level policy rises on skills trained far longer than
+   the quickstart can; the summary names both;
 7. recordings: both velocity-control policies recorded to ``.rrd`` files;
 8. plots: PNG training curves;
 
@@ -60,11 +63,12 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
         settings_digest,
     )
     from mocap_hierarchy.quickstart.report import print_summary
-    from mocap_hierarchy.quickstart.verdicts import FOLLOWS_REWARD, LEVEL, summary_verdicts
+    from mocap_hierarchy.quickstart.verdicts import FOLLOWS_REWARD, FOLLOWS_SLOPE, LEVEL, summary_verdicts
 
 __all__ = [
     "EPISODE_LIMIT",
     "FOLLOWS_REWARD",
+    "FOLLOWS_SLOPE",
     "LEVEL",
     "RECORD_FORMAT",
     "STAGES_DIR",
@@ -85,6 +89,7 @@ __getattr__, __dir__ = lazy_exports(
     {
         "EPISODE_LIMIT": "mocap_hierarchy.quickstart.config",
         "FOLLOWS_REWARD": "mocap_hierarchy.quickstart.verdicts",
+        "FOLLOWS_SLOPE": "mocap_hierarchy.quickstart.verdicts",
         "LEVEL": "mocap_hierarchy.quickstart.verdicts",
         "RECORD_FORMAT": "mocap_hierarchy.quickstart.records",
         "STAGES_DIR": "mocap_hierarchy.quickstart.records",

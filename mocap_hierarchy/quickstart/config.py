@@ -7,8 +7,17 @@ from dataclasses import dataclass
 EPISODE_LIMIT = 500
 """Steps per velocity-control episode in the quickstart (the seed's task allows 2000)."""
 
+EVALUATION_EPISODES = 10
+"""Deterministic velocity-control evaluation episodes (times ``scale``): a speed slope needs several."""
+
 OWN_DECODER = "own"
 """``transfer_decoder`` value naming the decoder the quickstart distils itself."""
+
+SHIPPED_PRIOR = "auto"
+"""``transfer_prior`` value: the latent prior shipped with ``transfer_decoder``, if one ships."""
+
+NO_PRIOR = "none"
+"""``transfer_prior`` value: high-level actions are the latents themselves."""
 
 MODE_LABELS = {"decoder": "on the decoder", "joints": "on joint targets (baseline)"}
 """How messages name the two velocity-control modes."""
@@ -28,8 +37,15 @@ class QuickstartConfig:
         distill_steps: Optimiser steps of the distillation.
         distill_hidden: Width of the encoder's and decoder's hidden layers (the seed: 1024).
         transfer_decoder: The decoder velocity control runs on: a shipped decoder's name
-            (``synthetic-v1``, distilled from experts trained far longer than the quickstart
-            can), a decoder file, or ``own`` for the one this quickstart distils.
+            (``synthetic-v2`` or ``synthetic-v1``, distilled from experts trained far longer
+            than the quickstart can), a decoder file, or ``own`` for the one this quickstart distils.
+        transfer_prior: What the high-level actions are relative to: ``auto``, the latent prior
+            shipped with ``transfer_decoder`` (``synthetic-v2`` ships one: actions are residuals
+            on it) or none if it ships none; ``none``, the latents themselves; or a prior file.
+        velocity_max_speed: Commanded speeds are uniform below this, m/s (the seed's 4.5 asks
+            for running, which the synthetic clips never show; they move at 0-1.4 m/s).
+        velocity_heading_spread: Commanded headings lie within this many radians of the way
+            the walker faces at reset: 0 is straight ahead, 3.1416 any direction (the seed's).
         transfer_steps: Environment steps of each velocity-control run.
         record_steps: Steps of each velocity-control recording.
         scale: Multiplies every budget (episodes, steps, rollouts) for real runs.
@@ -45,8 +61,11 @@ class QuickstartConfig:
     rollouts_per_snippet: int = 5
     distill_steps: int = 600
     distill_hidden: int = 256
-    transfer_decoder: str = "synthetic-v1"
-    transfer_steps: int = 8192
+    transfer_decoder: str = "synthetic-v2"
+    transfer_prior: str = SHIPPED_PRIOR
+    velocity_max_speed: float = 1.5
+    velocity_heading_spread: float = 0.0
+    transfer_steps: int = 32_768
     record_steps: int = 200
     scale: float = 1.0
     workers: int = 0

@@ -10,7 +10,7 @@ from typing import Any
 from foundation.atomic import write_json
 from foundation.fingerprints import file_sha256
 from hierarchy.pretrained import names_hint, resolve_decoder
-from mocap_hierarchy.quickstart.config import MODE_LABELS, OWN_DECODER, QuickstartConfig
+from mocap_hierarchy.quickstart.config import MODE_LABELS, NO_PRIOR, OWN_DECODER, SHIPPED_PRIOR, QuickstartConfig
 from mocap_hierarchy.quickstart.plots import plots_stage
 from mocap_hierarchy.quickstart.records import STAGES_DIR, RunLog, StageRunner, settings_digest
 from mocap_hierarchy.quickstart.report import print_summary
@@ -91,16 +91,23 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
         outputs=lambda result: [result["decoder"], result["policy"], result["history"]],
     )
     transfer_decoder = _transfer_decoder(config, distilled)
-    print(f"velocity control runs on the decoder {transfer_decoder['name']} ({transfer_decoder['path']})")
+    transfer_prior = _transfer_prior(config, transfer_decoder)
+    print(
+        f"velocity control runs on the decoder {transfer_decoder['name']} ({transfer_decoder['path']})"
+        + (f" around its latent prior ({transfer_prior['path']})" if transfer_prior else "")
+    )
+    task_settings = pick("transfer_steps", "velocity_max_speed", "velocity_heading_spread", "scale", "seed")
     transfer = {
         mode: stages.run(
             f"transfer_{mode}",
             f"velocity control {MODE_LABELS[mode]}",
-            {**pick("transfer_steps", "scale", "seed"), "decoder": transfer_decoder if decoder else None},
-            functools.partial(transfer_stage, out / f"velocity_{mode}", decoder, config),
+            {**task_settings, "decoder": transfer_decoder if decoder else None, "prior": prior},
+            functools.partial(
+                transfer_stage, out / f"velocity_{mode}", decoder and decoder["path"], prior and prior["path"], config
+            ),
             outputs=lambda result: [result["policy"], result["progress"]],
         )
-        for mode, decoder in (("decoder", transfer_decoder["path"]), ("joints", None))
+        for mode, decoder, prior in (("decoder", transfer_decoder, transfer_prior), ("joints", None, None))
     }
     recordings = {
         mode: stages.run(
@@ -128,6 +135,7 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
         "dataset": dataset,
         "distill": distilled,
         "transfer_decoder": transfer_decoder,
+        "transfer_prior": transfer_prior,
         "transfer": transfer,
         "recordings": recordings,
         "plots": plots,
@@ -149,4 +157,31 @@ def _transfer_decoder(config: QuickstartConfig, distilled: dict) -> dict[str, st
                 f"transfer_decoder {config.transfer_decoder!r} is neither a decoder file nor a shipped name "
                 f"({names_hint()}); use --transfer-decoder own for the quickstart's own decoder"
             )
+    return {"name": name, "path": str(path), "sha256": file_sha256(path)}
+
+
+def _transfer_prior(config: QuickstartConfig, decoder: dict[str, str]) -> dict[str, str] | None:
+    """The latent prior velocity control acts around: ``{name, path, sha256}``, or None.
+
+    Raises:
+        FileNotFoundError: ``transfer_prior`` names neither ``auto``, ``none`` nor a file.
+    """
+    from hierarchy.latent_prior import shipped_priors  # loads torch: only once the quickstart runs
+
+    if config.transfer_prior == NO_PRIOR:
+        return None
+    if config.transfer_prior == SHIPPED_PRIOR:
+        path = shipped_priors().get(decoder["name"])
+        if path is None:
+            return None
+        name = f"shipped with {decoder['name']}"
+    else:
+        path = Path(config.transfer_prior)
+        if not path.is_file():
+            raise FileNotFoundError(
+                f"transfer_prior {config.transfer_prior!r} is not a file; use --transfer-prior {SHIPPED_PRIOR} for "
+                f"the prior shipped with the decoder (shipped with: {', '.join(shipped_priors()) or 'none'}) or "
+                f"--transfer-prior {NO_PRIOR}"
+            )
+        name = path.name
     return {"name": name, "path": str(path), "sha256": file_sha256(path)}

@@ -46,10 +46,24 @@ def print_summary(summary: dict) -> None:
             f"length {run['mean_length']:.0f} steps, reward per step {reward_per_step(run):.3f} "
             f"({run['steps']} training steps)"
         )
+        if run.get("training_return_first") is not None:
+            print(
+                f"    training return (episode mean) from {run['training_return_first']:.1f} at the first update to "
+                f"{run['training_return_last']:.1f} at the last"
+            )
+        if "speed" in run:
+            speed = run["speed"]
+            print(
+                f"    speed along the command over commanded speed: slope {speed['slope']:.2f} "
+                f"(r {speed['correlation']:.2f}), heading cosine {speed['heading_cosine']:.2f}; standing still "
+                f"would earn {speed['still_reward_per_step']:.3f} per step"
+            )
     print(f"decoder file: {summary['distill']['decoder']}")
     if "transfer_decoder" in summary:
         used = summary["transfer_decoder"]
-        print(f"velocity control ran on the decoder {used['name']} ({used['path']})")
+        prior = summary.get("transfer_prior")
+        around = f", acting around the latent prior {prior['name']} ({prior['path']})" if prior else ""
+        print(f"velocity control ran on the decoder {used['name']} ({used['path']}){around}")
     print("\nverdicts:")
     groups: dict[str, list[str]] = {}
     for snippet, verdict in verdicts["experts"].items():
@@ -61,9 +75,16 @@ def print_summary(summary: dict) -> None:
         "reward; 1 = level)"
     )
     velocity = verdicts["velocity_control"]
+    if "follows_from_slope" in velocity:
+        needs = (
+            f"standing still {velocity['still_reward_per_step']:.3f}; speed slope {velocity['speed_slope']:.2f}, "
+            f"needs {velocity['follows_from_slope']:g}"
+        )
+    else:
+        needs = f"needs {velocity['follows_from']:g}"
     line = (
         f"  velocity control on the decoder: {velocity['verdict']} (reward per step {velocity['reward_per_step']:.3f}, "
-        f"needs {velocity['follows_from']:g})"
+        f"{needs})"
     )
     if "against_baseline" in velocity:
         line += (

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from tqdm.auto import tqdm
 
-from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, QuickstartConfig
+from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, EVALUATION_EPISODES, MODE_LABELS, QuickstartConfig
 from mocap_hierarchy.quickstart.progress import training_returns
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig, reference_action
 from tasks.walker import build_walker
@@ -150,9 +150,22 @@ def distill_stage(data: Path, out: Path, expert_rows: list[dict], config: Quicks
     }
 
 
-def transfer_stage(out: Path, decoder: str | None, config: QuickstartConfig) -> dict:
-    """Velocity control trained with PPO (on the decoder, or on joint targets without one), then evaluated."""
-    from hierarchy.transfer import TransferConfig, evaluate_transfer, train_transfer
+def velocity_task_settings(config: QuickstartConfig) -> dict[str, Any]:
+    """The velocity-control task settings both quickstart runs train and are evaluated on."""
+    return {
+        "max_steps": EPISODE_LIMIT,
+        "max_speed": config.velocity_max_speed,
+        "heading_spread": config.velocity_heading_spread,
+    }
+
+
+def transfer_stage(out: Path, decoder: str | None, prior: str | None, config: QuickstartConfig) -> dict:
+    """Velocity control trained with PPO, then evaluated deterministically (returns, commanded vs actual speed).
+
+    ``decoder`` None trains on joint targets; with ``prior`` the actions are residuals on the decoder's prior.
+    """
+    from hierarchy.transfer import TransferConfig, track_speed, train_transfer
+    from tasks.downstream.speed_tracking import summarise
 
     steps = max(2048, round(config.transfer_steps * config.scale) // 2048 * 2048)
     transfer = TransferConfig(
@@ -162,26 +175,31 @@ def transfer_stage(out: Path, decoder: str | None, config: QuickstartConfig) -> 
         minibatch_size=256,
         hidden_layers=(256, 256),
         learning_rate=3e-4,
+        initial_std=1.0 if decoder else None,
         subprocess_envs=False,
         checkpoint_every=2048,
         seed=config.seed,
         device="cpu",
     )
-    label = "on the decoder" if decoder else "on joint targets (baseline)"
+    label = MODE_LABELS["decoder" if decoder else "joints"] + (" around its latent prior" if prior else "")
     print(f"\nvelocity control {label}: {steps} steps")
-    policy = train_transfer("velocity_control", out, decoder, transfer, {"max_steps": EPISODE_LIMIT})
-    episodes = max(3, round(5 * config.scale))
+    policy = train_transfer(
+        "velocity_control", out, decoder, transfer, velocity_task_settings(config), latent_prior=prior
+    )
+    episodes = max(EVALUATION_EPISODES, round(EVALUATION_EPISODES * config.scale))
     print(f"evaluating the velocity-control policy {label}: {episodes} episodes, deterministic")
-    evaluation = evaluate_transfer(policy, episodes=episodes, seed=config.seed + 1000, progress=True)
+    runs = track_speed(policy, episodes=episodes, seed=config.seed + 1000, progress=True)
+    returns = [float(run.rewards.sum()) * run.steps_per_latent for run in runs]
     training = training_returns(out / "progress.csv")
     return {
         "policy": str(policy),
         "steps": steps,
         "episodes": episodes,
         "episode_limit": EPISODE_LIMIT,
-        "mean_return": evaluation.mean_return,
-        "std_return": evaluation.std_return,
-        "mean_length": evaluation.mean_length,
+        "mean_return": float(np.mean(returns)),
+        "std_return": float(np.std(returns)),
+        "mean_length": float(np.mean([len(run.rewards) for run in runs])),
+        "speed": summarise(runs).as_dict(),
         "training_return_first": training[0][1] if training else None,
         "training_return_last": training[-1][1] if training else None,
         "progress": str(out / "progress.csv"),

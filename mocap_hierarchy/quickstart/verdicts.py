@@ -8,9 +8,14 @@ from typing import Any
 from mocap_hierarchy.quickstart.config import EPISODE_LIMIT
 
 FOLLOWS_REWARD = 0.5
-"""Mean velocity-control reward per step from which a policy counts as following the command.
+"""Mean velocity-control reward per step from which a policy counted as following the command, in
+summaries written before the quickstart measured speed tracking (the reward is 1 at the commanded
+velocity; 0.5 is a speed about 0.6 m/s off in the right direction).
+"""
 
-The reward is 1 at the commanded velocity; 0.5 is a speed about 0.6 m/s off in the right direction.
+FOLLOWS_SLOPE = 0.5
+"""Slope of speed along the command over commanded speed (one point per evaluation episode) from
+which a policy counts as choosing its speed by the command (1: exactly; 0: one pace whatever is asked).
 """
 
 LEVEL = 0.02
@@ -31,10 +36,11 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
       below the open-loop playback baseline's (same protocol: from the start, deterministic);
     - ``multi_clip``: whether the multi-clip policy beats or trails its experts
       (the mean over snippets of its normalised reward divided by the expert's);
-    - ``velocity_control``: whether the decoder-based policy follows the command
-      (mean reward per step of the deterministic evaluation at least
-      :data:`FOLLOWS_REWARD`; 1 is the commanded velocity), and how it compares
-      with the joint-target baseline.
+    - ``velocity_control``: whether the decoder-based policy follows the command: it
+      earns more per step than standing still would and its speed rises with the
+      commanded speed (slope at least :data:`FOLLOWS_SLOPE`), from the deterministic
+      evaluation; how its return compares with the joint-target baseline's, and the
+      rise of its training return.
     """
     return {
         "experts": _expert_verdicts(summary["playback"], summary["experts"]),
@@ -85,16 +91,26 @@ def reward_per_step(run: dict) -> float:
 def _velocity_verdict(transfer: dict, decoder: str) -> dict[str, Any]:
     run = transfer["decoder"]
     per_step = reward_per_step(run)
-    follows = "follows the command" if per_step >= FOLLOWS_REWARD else "does not follow the command yet"
     verdict: dict[str, Any] = {
-        "verdict": follows,
+        "verdict": _follows(run, per_step),
         "reward_per_step": per_step,
-        "follows_from": FOLLOWS_REWARD,
         "mean_return": run["mean_return"],
         "mean_length": run["mean_length"],
         "episode_limit": run.get("episode_limit", EPISODE_LIMIT),
         "decoder": decoder,
+        "training_return_first": run.get("training_return_first"),
+        "training_return_last": run.get("training_return_last"),
     }
+    if "speed" in run:
+        speed = run["speed"]
+        verdict.update(
+            speed_slope=speed["slope"],
+            follows_from_slope=FOLLOWS_SLOPE,
+            still_reward_per_step=speed["still_reward_per_step"],
+            heading_cosine=speed["heading_cosine"],
+        )
+    else:
+        verdict["follows_from"] = FOLLOWS_REWARD
     baseline = transfer.get("joints")
     if baseline is not None:
         word = {"above": "beats", "below": "trails", "level with": "is level with"}[
@@ -104,6 +120,18 @@ def _velocity_verdict(transfer: dict, decoder: str) -> dict[str, Any]:
         verdict["baseline_reward_per_step"] = reward_per_step(baseline)
         verdict["baseline_mean_return"] = baseline["mean_return"]
     return verdict
+
+
+def _follows(run: dict, per_step: float) -> str:
+    """Whether a velocity-control run follows the command, in words."""
+    if "speed" not in run:  # a summary from before speed tracking: the reward-per-step rule
+        return "follows the command" if per_step >= FOLLOWS_REWARD else "does not follow the command yet"
+    speed = run["speed"]
+    if per_step <= speed["still_reward_per_step"]:
+        return "does not follow the command yet (standing still would earn as much)"
+    if not speed["slope"] >= FOLLOWS_SLOPE:  # NaN (no spread of speeds) counts as not following
+        return "earns more than standing still but does not choose its speed by the command yet"
+    return "follows the command"
 
 
 def _decoder_path(summary: dict) -> str:

@@ -16,7 +16,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 import tasks
 from hierarchy import LatentActionVecEnv
 from hierarchy.task_policy import load_task_policy, task_policy_from_sb3
-from hierarchy.transfer import TransferConfig, evaluate_transfer, train_transfer
+from hierarchy.transfer import TransferConfig, evaluate_transfer, track_speed, train_transfer
 
 from .test_decoder import small_decoder
 
@@ -98,6 +98,22 @@ def test_train_resume_and_evaluate(tmp_path, with_decoder, capsys):
     summary = evaluate_transfer(policy_file, episodes=2, max_steps=10)
     assert summary.episodes == 2 and len(summary.returns) == 2
     assert all(0 < n <= 10 for n in summary.lengths) and np.isfinite(summary.mean_return)
+
+
+def test_speed_tracking_replays_the_evaluation_and_keeps_the_trained_task_settings(tmp_path):
+    decoder_file = small_decoder().save(tmp_path / "decoder.safetensors")
+    settings = {"max_steps": 30, "max_speed": 1.5, "heading_spread": 0.0}
+    policy_file = train_transfer("velocity_control", tmp_path / "run", decoder_file, TINY, settings, progress=False)
+    episodes = track_speed(policy_file, episodes=3, seed=7, max_steps=12)
+    evaluation = evaluate_transfer(policy_file, episodes=3, seed=7, max_steps=12)
+    np.testing.assert_allclose([e.rewards.sum() for e in episodes], evaluation.returns, rtol=1e-12)
+    assert [len(e.rewards) for e in episodes] == evaluation.lengths
+    for episode in episodes:  # the recorded task settings hold: commands straight ahead, below 1.5 m/s
+        speed = episode.commanded[:, 0]
+        assert np.all(episode.commanded[:, 1] == 0) and np.all((speed >= 0) & (speed < 1.5))
+    go_to_target = train_transfer("go_to_target", tmp_path / "gtt", decoder_file, TINY, {"max_steps": 10}, False)
+    with pytest.raises(TypeError, match="velocity-control task"):
+        track_speed(go_to_target, episodes=1)
 
 
 def test_initial_std_follows_the_seed():
