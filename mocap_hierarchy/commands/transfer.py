@@ -34,6 +34,12 @@ def add_commands(subparsers: LazySubParsers) -> None:
     evaluate.add_argument("--max-steps", type=int, default=None, help="shorter episodes than the task's limit")
     evaluate.add_argument("--seed", type=int, default=0, help="seed of the first episode (default: 0)")
     evaluate.add_argument("--json", type=Path, default=None, help="write the summary here")
+    evaluate.add_argument(
+        "--speed",
+        action="store_true",
+        help="velocity control: also report commanded against actual speed over the same episodes (slope of the "
+        "speed along the command over the commanded speed, heading cosine, reward against standing still)",
+    )
     evaluate.set_defaults(handler=_evaluate)
 
 
@@ -90,6 +96,9 @@ def _evaluate(args: argparse.Namespace) -> None:
     from hierarchy.transfer import POLICY_FILE, evaluate_transfer
 
     path = file_in_folder(args.policy, POLICY_FILE)
+    if args.speed:
+        _evaluate_speed(path, args)
+        return
     summary = evaluate_transfer(
         path, args.episodes, args.decoder, args.seed, args.max_steps, progress=True, latent_prior_path=args.latent_prior
     )
@@ -101,3 +110,25 @@ def _evaluate(args: argparse.Namespace) -> None:
         from foundation.atomic import write_json
 
         write_json(args.json, dataclasses.asdict(summary))
+
+
+def _evaluate_speed(path: Path, args: argparse.Namespace) -> None:
+    """``transfer eval --speed``: returns and speed tracking from one set of episodes."""
+    import numpy as np
+
+    from foundation.atomic import write_json
+    from hierarchy.transfer import track_speed
+    from tasks.downstream.speed_tracking import summarise
+
+    runs = track_speed(path, args.episodes, args.seed, args.max_steps, True, args.decoder, args.latent_prior)
+    returns = [run.episode_return for run in runs]
+    speed = summarise(runs)
+    print(
+        f"velocity_control: return {np.mean(returns):.2f} +- {np.std(returns):.2f}, length "
+        f"{np.mean([len(run.rewards) for run in runs]):.1f} over {len(runs)} episodes\n"
+        f"speed along the command over commanded speed: slope {speed.slope:.2f} (r {speed.correlation:.2f}), "
+        f"heading cosine {speed.heading_cosine:.2f}, {speed.steps:.0f} control steps; reward per step "
+        f"{speed.reward_per_step:.3f} against {speed.still_reward_per_step:.3f} for standing still"
+    )
+    if args.json:
+        write_json(args.json, {"returns": returns, "speed": speed.as_dict()})

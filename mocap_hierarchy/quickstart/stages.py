@@ -189,7 +189,7 @@ def transfer_stage(out: Path, decoder: str | None, prior: str | None, config: Qu
     episodes = max(EVALUATION_EPISODES, round(EVALUATION_EPISODES * config.scale))
     print(f"evaluating the velocity-control policy {label}: {episodes} episodes, deterministic")
     runs = track_speed(policy, episodes=episodes, seed=config.seed + 1000, progress=True)
-    returns = [float(run.rewards.sum()) * run.steps_per_latent for run in runs]
+    returns = [run.episode_return for run in runs]
     training = training_returns(out / "progress.csv")
     return {
         "policy": str(policy),

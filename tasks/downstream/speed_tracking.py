@@ -50,6 +50,11 @@ class SpeedEpisode:
         """Control steps the episode lasted."""
         return len(self.rewards) * self.steps_per_latent
 
+    @property
+    def episode_return(self) -> float:
+        """The task's undiscounted return (the rewards of every control step)."""
+        return float(self.rewards.sum()) * self.steps_per_latent
+
     def speed_along_command(self) -> np.ndarray:
         """Per step, the actual velocity's component along the commanded direction (0 where none is commanded)."""
         speed = np.linalg.norm(self.commanded, axis=1)

@@ -39,6 +39,16 @@ def test_distill_decoder_transfer_commands(rollout_dir, tmp_path, capsys):
     assert main(command.split()) == 0
     assert main(["transfer", "eval", str(run), "--episodes", "1", "--max-steps", "5"]) == 0
     assert "velocity_control: return" in capsys.readouterr().out
+    speed_file = tmp_path / "speed.json"
+    assert (
+        main(
+            ["transfer", "eval", str(run), "--episodes", "2", "--max-steps", "5", "--speed", "--json", str(speed_file)]
+        )
+        == 0
+    )
+    assert "speed along the command over commanded speed: slope" in capsys.readouterr().out
+    speed = json.loads(speed_file.read_text())
+    assert len(speed["returns"]) == 2 and speed["speed"]["episodes"] == 2 and 0 < speed["speed"]["steps"] <= 5
 
 
 def test_bad_paths_exit_with_a_message(tmp_path, capsys):
