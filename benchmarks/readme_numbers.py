@@ -12,7 +12,11 @@ with ``--update-readme`` every ``<!-- measured:KEY -->VALUE<!-- /measured -->`` 
 the README is rewritten from it. ``tests/test_readme.py`` checks that the README's spans
 and the JSON agree. Takes about 20 minutes on 2 cores.
 
-    python benchmarks/readme_numbers.py [--update-readme] [--skip-tests] [--skip-quickstart]
+    python benchmarks/readme_numbers.py [--update-readme] [--skip-tests] [--skip-quickstart] [--quickstart-out DIR]
+
+``--quickstart-out DIR`` keeps the measured quickstart's folder (it must not exist yet:
+the measurement is of a fresh run), so the README's quickstart figures and its timing
+come from the same run.
 """
 
 from __future__ import annotations
@@ -88,7 +92,12 @@ def main() -> None:
     parser.add_argument("--update-readme", action="store_true", help="rewrite the README's measured spans")
     parser.add_argument("--skip-tests", action="store_true", help="keep the earlier tests_minutes")
     parser.add_argument("--skip-quickstart", action="store_true", help="keep the earlier quickstart numbers")
+    parser.add_argument(
+        "--quickstart-out", type=Path, default=None, help="keep the measured quickstart here (a new folder)"
+    )
     args = parser.parse_args()
+    if args.quickstart_out is not None and args.quickstart_out.exists():
+        parser.error(f"--quickstart-out {args.quickstart_out} exists; the timing is of a fresh run: give a new folder")
     before = machine()
     earlier = json.loads(NUMBERS.read_text()) if NUMBERS.is_file() else {"numbers": {}}
     numbers: dict[str, float] = {}
@@ -99,7 +108,7 @@ def main() -> None:
     else:
         remeasured.append("quickstart")
         with tempfile.TemporaryDirectory() as folder:
-            out = Path(folder) / "quickstart"
+            out = (args.quickstart_out or Path(folder) / "quickstart").resolve()
             numbers["quickstart_minutes"] = timed_minutes([*cli, "quickstart", "--out", str(out)], ROOT)
             print(f"quickstart: {numbers['quickstart_minutes']:.2f} min")
             numbers["quickstart_rerun_seconds"] = 60 * timed_minutes([*cli, "quickstart", "--out", str(out)], ROOT)
