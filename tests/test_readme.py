@@ -41,3 +41,23 @@ def test_readme_timings_are_the_measured_ones():
     for key, text in spans:
         assert text == (f"{numbers[key]:.0f}" if key.endswith("_seconds") else f"{numbers[key]:.1f}"), key
     assert record["machine"]["cores"] >= 1 and record["commit"]  # where and on what they were measured
+
+
+def heading_anchor(heading: str) -> str:
+    """The anchor GitHub gives a Markdown heading: lower case, punctuation dropped, spaces as hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def test_heading_anchor_follows_github():
+    assert heading_anchor("Acting around a latent prior (`decoder fit-prior`, `--latent-prior`)") == (
+        "acting-around-a-latent-prior-decoder-fit-prior---latent-prior"
+    )
+
+
+def test_every_in_page_link_of_the_readme_has_its_heading():
+    """A renamed section breaks no link: every ``](#anchor)`` names a heading of the README."""
+    text = README.read_text()
+    anchors = {heading_anchor(heading) for heading in re.findall(r"^#{1,6} (.+)$", text, flags=re.M)}
+    links = re.findall(r"\]\(#([^)]+)\)", text)
+    assert len(links) >= 3
+    assert sorted(set(links) - anchors) == []

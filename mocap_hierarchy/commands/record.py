@@ -26,6 +26,12 @@ def add_commands(subparsers: LazySubParsers) -> None:
     record.add_argument(
         "--video", type=Path, default=None, help="also write an mp4 (needs MUJOCO_GL=egl or osmesa and the video extra)"
     )
+    record.add_argument(
+        "--filmstrip",
+        type=Path,
+        default=None,
+        help="also write a PNG of 8 evenly spaced frames of the video (needs --video)",
+    )
     record.add_argument("--set", nargs="+", default=[], metavar="FIELD=VALUE", help="task settings, e.g. max_steps=200")
     record.set_defaults(handler=_record)
 
@@ -38,6 +44,10 @@ def _record(args: argparse.Namespace) -> None:
     from mocap_hierarchy.commands.transfer import parse_settings
     from mocap_hierarchy.record import record
 
+    if args.filmstrip is not None and args.video is None:
+        raise SystemExit("--filmstrip draws frames of the video: add --video FILE.mp4")
+    if args.filmstrip is not None and args.filmstrip.suffix != ".png":
+        raise SystemExit(f"--filmstrip writes a .png file, got {args.filmstrip}")
     result = record(
         args.task,
         args.policy,
@@ -51,6 +61,10 @@ def _record(args: argparse.Namespace) -> None:
     print(f"recorded {result['episodes']} episode(s), {result['steps']} steps: {result['path']}")
     if "video" in result:
         print(f"video: {result['video']}")
+    if args.filmstrip is not None:
+        from tasks.viz.filmstrip import write_filmstrip
+
+        print(f"filmstrip: {write_filmstrip(args.video, args.filmstrip)}")
     print(f"open it with: mocap-hierarchy view {result['path']}")
 
 

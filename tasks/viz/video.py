@@ -35,11 +35,12 @@ class VideoUnavailableError(RuntimeError):
     """Offscreen rendering or mp4 encoding is not available here."""
 
 
-def _encoder():
+def import_pyav():
+    """PyAV, which reads and writes the mp4 files (the ``video`` extra), or a clear error."""
     try:
         import av
     except ImportError:
-        raise VideoUnavailableError('mp4 export needs PyAV: pip install -c requirements.lock -e ".[video]"') from None
+        raise VideoUnavailableError('mp4 files need PyAV: pip install -c requirements.lock -e ".[video]"') from None
     return av
 
 
@@ -77,7 +78,7 @@ class VideoRecorder(gym.Wrapper):
         if self.path.suffix != ".mp4":
             raise ValueError(f"the video file must end in .mp4, got {self.path}")
         task: Any = env.unwrapped
-        self._av = _encoder()
+        self._av = import_pyav()
         self._task = task
         self._renderer = _renderer(task.walker.model, width, height)
         self._camera = mujoco.MjvCamera()
