@@ -2,8 +2,8 @@
 
 :func:`write_filmstrip` decodes a video (e.g. the one ``mocap-hierarchy record --video``
 writes), keeps ``frames`` of them evenly spaced from the first to the last, labels each
-with its time in seconds and tiles them into rows of ``columns``. The PNG is written
-atomically. Needs PyAV (the ``video`` extra) and matplotlib.
+with its time in seconds (in its top left corner) and tiles them into rows of
+``columns``. The PNG is written atomically. Needs PyAV (the ``video`` extra) and matplotlib.
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def write_filmstrip(
         if position < len(chosen):
             index = chosen[position]
             axis.imshow(pixels[index])
-            axis.set_title(f"{index / rate:.1f} s", fontsize=9)
+            axis.text(0.03, 0.95, f"{index / rate:.1f} s", transform=axis.transAxes, color="white", va="top")
     figure.suptitle(title if title is not None else Path(video).name, fontsize=10)
     figure.tight_layout()
     out.parent.mkdir(parents=True, exist_ok=True)
