@@ -65,7 +65,7 @@ class QuickstartConfig:
     transfer_prior: str = SHIPPED_PRIOR
     velocity_max_speed: float = 1.5
     velocity_heading_spread: float = 0.0
-    transfer_steps: int = 32_768
+    transfer_steps: int = 131_072
     record_steps: int = 200
     scale: float = 1.0
     workers: int = 0
