@@ -12,7 +12,9 @@ min to max; ``--replot --snippets S`` draws one snippet's). Runs resume:
 rerunning the same command (or one with only some of its variants) continues
 unfinished experts and skips finished ones; ``sweep.json``
 keeps every variant the folder has seen, and the plot and ``--replot`` draw them
-all from what is on disk (also while a sweep is still running).
+all from what is on disk (also while a sweep is still running). ``--span START END``
+(repeatable) also prints each variant's mean normalised length and reward over its
+evaluations in that stretch of steps, the figure the README's tables quote.
 
 Usage::
 
@@ -141,6 +143,44 @@ def summarise(curves: dict[str, list[list[dict]]], finals: dict[str, list] | Non
     return summary
 
 
+def span_means(curves: dict[str, list[list[dict]]], start: int, end: int) -> dict[str, dict | None]:
+    """Per variant, the evaluations with ``start <= steps <= end``: their mean length and reward.
+
+    Each run's evaluations in the span are averaged first, then the runs (seeds,
+    snippets); ``evaluations`` is the mean count per run. None for a variant with a
+    run that has no evaluation in the span (a run that has not got there yet).
+    """
+    means: dict[str, dict | None] = {}
+    for variant, runs in curves.items():
+        inside = [[e for e in run if start <= e["steps"] <= end] for run in runs]
+        if not all(inside):
+            means[variant] = None
+            continue
+        means[variant] = {
+            "evaluations": float(np.mean([len(run) for run in inside])),
+            "normalized_length": float(np.mean([np.mean([e["normalized_length"] for e in run]) for run in inside])),
+            "normalized_reward": float(np.mean([np.mean([e["normalized_reward"] for e in run]) for run in inside])),
+        }
+    return means
+
+
+def print_spans(curves: dict[str, list[list[dict]]], spans: list[tuple[int, int]]) -> dict[str, dict]:
+    """One line per variant and span: mean normalised length and reward of its evaluations in the span."""
+    print(f"\n{'variant':<26}{'span':>17}{'evals':>7}{'mean len':>10}{'mean rew':>10}")
+    table: dict[str, dict] = {}
+    for start, end in spans:
+        name = f"{start / 1e6:g}M-{end / 1e6:g}M"
+        for variant, row in span_means(curves, start, end).items():
+            table.setdefault(variant, {})[name] = row
+            numbers = (
+                "  (no evaluation in the span)"
+                if row is None
+                else (f"{row['evaluations']:>7.1f}{row['normalized_length']:>10.3f}{row['normalized_reward']:>10.3f}")
+            )
+            print(f"{variant:<26}{name:>17}{numbers}")
+    return table
+
+
 def _band(runs: list[list[dict]], x_key: str, y_key: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Mean, min and max of ``y_key`` over runs at the evaluations all runs have reached."""
     count = min(len(r) for r in runs)
@@ -225,6 +265,16 @@ def main() -> None:
     parser.add_argument("--jobs", type=int, default=0, help="runs at a time (0: one per core)")
     parser.add_argument("--title", default=None)
     parser.add_argument("--replot", action="store_true", help="only redraw from what OUT holds")
+    parser.add_argument(
+        "--span",
+        type=int,
+        nargs=2,
+        action="append",
+        default=[],
+        metavar=("START", "END"),
+        help="also print each variant's mean normalised length and reward over its evaluations at "
+        "START <= steps <= END (repeatable; written to the summary as spans)",
+    )
     args = parser.parse_args()
     only = args.snippets if args.replot else None
     args.snippets = args.snippets or ["SYN_walk_slow-0-182"]
@@ -268,10 +318,11 @@ def main() -> None:
     if not curves:
         raise SystemExit(f"no evaluations under {args.out} yet")
     summary = summarise(curves, final_evaluations_on_disk(args.out, record))
-    write_json(args.out / f"summary{suffix}.json", {"summary": summary, "curves": curves})
     title = args.title or f"{', '.join(record['snippets'])}: {args.steps:,} steps per run"
     plot(curves, title, args.out / f"expert_learning{suffix}.png")
     print_table(summary)
+    spans = print_spans(curves, [tuple(span) for span in args.span]) if args.span else {}
+    write_json(args.out / f"summary{suffix}.json", {"summary": summary, "spans": spans, "curves": curves})
     print(f"\nplot: {args.out / f'expert_learning{suffix}.png'}")
 
 

@@ -1,0 +1,45 @@
+"""The sweep tool's span means (``benchmarks/expert_learning.py --span``), quoted by the README's tables."""
+
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "expert_learning.py"
+
+
+@pytest.fixture(scope="module")
+def sweep_tool():
+    spec = importlib.util.spec_from_file_location("expert_learning", SCRIPT)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def evaluations(*points):
+    return [{"steps": s, "normalized_length": length, "normalized_reward": length / 2} for s, length in points]
+
+
+def test_span_means_average_each_run_inside_the_span_then_the_runs(sweep_tool):
+    curves = {
+        "a": [
+            evaluations((0, 0.1), (100, 0.5), (200, 0.7), (300, 0.9)),  # inside [100, 200]: 0.5, 0.7 -> 0.6
+            evaluations((100, 0.8), (250, 0.2)),  # inside: 0.8 alone
+        ],
+        "b": [evaluations((0, 0.3), (300, 0.4))],  # nothing inside [100, 200]
+    }
+    means = sweep_tool.span_means(curves, 100, 200)
+    assert means["a"]["normalized_length"] == pytest.approx((0.6 + 0.8) / 2)
+    assert means["a"]["normalized_reward"] == pytest.approx((0.3 + 0.4) / 2)
+    assert means["a"]["evaluations"] == 1.5
+    assert means["b"] is None
+    assert sweep_tool.span_means(curves, 300, 300)["a"] is None  # the second run has not got there
+
+
+def test_print_spans_names_each_span_and_keeps_its_rows(sweep_tool, capsys):
+    curves = {"a": [evaluations((1_500_000, 0.8), (2_500_000, 0.9))]}
+    table = sweep_tool.print_spans(curves, [(1_425_000, 2_025_000), (2_025_000, 3_000_000)])
+    assert table["a"]["1.425M-2.025M"]["normalized_length"] == pytest.approx(0.8)
+    assert table["a"]["2.025M-3M"]["normalized_length"] == pytest.approx(0.9)
+    assert "1.425M-2.025M" in capsys.readouterr().out
