@@ -276,6 +276,9 @@ def main() -> None:
         "START <= steps <= END (repeatable; written to the summary as spans)",
     )
     args = parser.parse_args()
+    for start, end in args.span:
+        if start > end:
+            parser.error(f"--span {start} {end}: START must not be after END")
     only = args.snippets if args.replot else None
     args.snippets = args.snippets or ["SYN_walk_slow-0-182"]
 
