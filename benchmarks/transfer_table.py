@@ -4,7 +4,8 @@ Reads every ``transfer train`` run under the given folders (``progress.csv`` and
 ``transfer.json``, as ``mocap-hierarchy report`` does; seeds of one setting are
 pooled, settings are labelled as in the report) and prints, per setting: seeds, the
 steps every seed reached, the seed-mean return at the first update, averaged over all
-updates and at the last, the min-max over seeds at the last update, and the range of
+updates and at the last (``--since``/``--until``: of one stretch of the runs), the
+min-max over seeds at the last update, and the range of
 the seeds' last mean episode lengths. With two or more settings of one task it also
 prints, for each pair, at how many common updates one seed mean is above the other and
 how many updates every seed of one is above every seed of the other.
@@ -13,6 +14,7 @@ Usage::
 
     python benchmarks/transfer_table.py runs/gtt_prior
     python benchmarks/transfer_table.py runs/forward_1m --until 300000   # only the first 300k steps
+    python benchmarks/transfer_table.py runs/gtt_1m --since 250000 --until 500000   # one stretch of the runs
 """
 
 from __future__ import annotations
@@ -26,10 +28,16 @@ import numpy as np
 from mocap_hierarchy.report.sources import TransferRun, find_run_contents
 
 
-def seed_curves(runs: list[TransferRun], until: float) -> tuple[np.ndarray, np.ndarray]:
-    """The update steps every seed reached (up to ``until``) and the seeds' returns there, ``(seeds, updates)``."""
+def seed_curves(runs: list[TransferRun], until: float, since: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The update steps every seed reached (``since`` to ``until``) and the seeds' returns there, ``(seeds, updates)``.
+
+    Raises:
+        SystemExit: No update lies in the stretch.
+    """
     end = min(min(r.steps[-1] for r in runs), until)
-    grid = np.unique(np.concatenate([[s for s in r.steps if s <= end] for r in runs]))
+    grid = np.unique(np.concatenate([[s for s in r.steps if since <= s <= end] for r in runs]))
+    if grid.size == 0:
+        raise SystemExit(f"no update between {since:,.0f} and {end:,.0f} steps")
     return grid, np.array([np.interp(grid, r.steps, r.returns) for r in runs])
 
 
@@ -47,6 +55,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folders", nargs="+", type=Path, help="folders holding transfer runs (searched recursively)")
     parser.add_argument("--until", type=float, default=float("inf"), help="ignore updates after this many steps")
+    parser.add_argument("--since", type=float, default=0.0, help="ignore updates before this many steps")
     args = parser.parse_args()
     groups: dict[str, list[TransferRun]] = {}
     where: dict[int, Path] = {}
@@ -63,7 +72,7 @@ def main() -> None:
     )
     curves = {}
     for label, group in groups.items():
-        steps, returns = seed_curves(group, args.until)
+        steps, returns = seed_curves(group, args.until, args.since)
         curves[label] = (steps, returns, group[0].task)
         mean = returns.mean(axis=0)
         lengths = [last_length(where[id(run)], steps[-1]) for run in group]

@@ -1,20 +1,26 @@
-"""The sweep tool's span means (``benchmarks/expert_learning.py --span``), quoted by the README's tables."""
+"""Stretches of runs in the README's benchmark tables (``expert_learning.py --span``, ``transfer_table.py --since``)."""
 
 import importlib.util
 from pathlib import Path
+from types import SimpleNamespace
 
+import numpy as np
 import pytest
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "expert_learning.py"
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
-@pytest.fixture(scope="module")
-def sweep_tool():
-    spec = importlib.util.spec_from_file_location("expert_learning", SCRIPT)
+def load_script(name: str):
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
     assert spec is not None and spec.loader is not None
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+@pytest.fixture(scope="module")
+def sweep_tool():
+    return load_script("expert_learning")
 
 
 def evaluations(*points):
@@ -43,3 +49,16 @@ def test_print_spans_names_each_span_and_keeps_its_rows(sweep_tool, capsys):
     assert table["a"]["1.425M-2.025M"]["normalized_length"] == pytest.approx(0.8)
     assert table["a"]["2.025M-3M"]["normalized_length"] == pytest.approx(0.9)
     assert "1.425M-2.025M" in capsys.readouterr().out
+
+
+def test_transfer_table_keeps_only_the_updates_of_the_stretch_every_seed_reached():
+    table = load_script("transfer_table")
+    runs = [
+        SimpleNamespace(steps=np.array([100, 200, 300, 400]), returns=np.array([1.0, 2.0, 3.0, 4.0])),
+        SimpleNamespace(steps=np.array([100, 200, 300]), returns=np.array([5.0, 6.0, 7.0])),
+    ]
+    steps, returns = table.seed_curves(runs, until=float("inf"), since=200)
+    np.testing.assert_array_equal(steps, [200, 300])  # 400: the second seed never got there
+    np.testing.assert_array_equal(returns, [[2.0, 3.0], [6.0, 7.0]])
+    with pytest.raises(SystemExit, match="no update between"):
+        table.seed_curves(runs, until=250, since=210)
