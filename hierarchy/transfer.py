@@ -18,7 +18,8 @@ from __future__ import annotations
 import functools
 import json
 import os
-from collections.abc import Callable
+from collections import deque
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -39,7 +40,11 @@ from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
 from hierarchy.latent_prior import LatentPrior, load_latent_prior, resolve_prior, shipped_prior_name
 from hierarchy.pretrained import pretrained_name, resolve_decoder
 from hierarchy.task_policy import TaskPolicy, load_task_policy, task_policy_from_sb3
-from hierarchy.transfer_config import RESUME_FREE_FIELDS, TransferConfig  # light module; re-exported here
+from hierarchy.transfer_config import (  # light module; TransferConfig is re-exported here
+    RESUME_FREE_FIELDS,
+    TASK_RETURN_KEY,
+    TransferConfig,
+)
 from tasks import registry
 from tasks.downstream.speed_tracking import SpeedEpisode, run_episode
 
@@ -54,7 +59,7 @@ class EvaluationSummary:
     Attributes:
         task: Task name.
         episodes: Number of episodes.
-        mean_return: Mean undiscounted return.
+        mean_return: Mean undiscounted return of the task's own reward (no training terms).
         std_return: Standard deviation of the return.
         mean_length: Mean episode length (high-level steps).
         returns: Per-episode returns.
@@ -348,13 +353,39 @@ def _save_resume_files(model, folder: Path) -> None:
     save_sb3(model, model.get_vec_normalize_env(), folder / "model.zip", folder / "vecnormalize.pkl")
 
 
+class TaskReturns:
+    """The task's own returns of the last ``window`` training episodes, read from the ended episodes' infos.
+
+    Tasks built on :class:`tasks.downstream.walker_task.WalkerTaskEnv` report ``task_return``
+    in every step's ``info``; a task that does not leaves this empty.
+    """
+
+    def __init__(self, window: int = 100) -> None:
+        self.recent: deque[float] = deque(maxlen=window)
+
+    def add(self, infos: Sequence[dict], dones: Sequence[bool]) -> None:
+        """Keeps the task return of every environment whose episode ended in this step."""
+        for info, done in zip(infos, dones, strict=True):
+            if done and "task_return" in info:
+                self.recent.append(float(info["task_return"]))
+
+    def mean(self) -> float | None:
+        """Mean over the kept episodes; None before the first ends."""
+        return float(np.mean(self.recent)) if self.recent else None
+
+
 class _ProgressAndCheckpoint(BaseCallback):
-    """A progress bar over environment steps (saying when PPO updates), and resume files every ``every`` steps."""
+    """Progress bar, resume files and the task's own return for one training run.
+
+    The bar counts environment steps (and says when PPO updates), resume files are written
+    every ``every`` steps, and the task's return is logged beside SB3's (:data:`TASK_RETURN_KEY`).
+    """
 
     def __init__(self, total: int, every: int, folder: Path, progress: bool, epochs: int, stop: StopFlag) -> None:
         super().__init__()
         self.total, self.every, self.folder, self.progress, self.epochs = total, every, folder, progress, epochs
         self.stop = stop
+        self.task_returns = TaskReturns()
 
     def _on_training_start(self) -> None:
         steps = self.model.num_timesteps
@@ -367,6 +398,7 @@ class _ProgressAndCheckpoint(BaseCallback):
 
     def _on_step(self) -> bool:
         self.bar.update(self.model.num_timesteps - self.bar.n)
+        self.task_returns.add(self.locals.get("infos", ()), self.locals.get("dones", ()))
         if self.model.num_timesteps >= self.next_save:
             _save_resume_files(self.model, self.folder)
             self.next_save += self.every
@@ -379,6 +411,9 @@ class _ProgressAndCheckpoint(BaseCallback):
         # The bar stands still while PPO updates on the rollout (after the last one, at 100%): say so.
         rollout = self.model.num_timesteps - self.rollout_began
         self.bar.set_postfix_str(f"PPO update: up to {self.epochs} epochs over {rollout} steps")
+        task_return = self.task_returns.mean()
+        if task_return is not None:  # written with this update's row of progress.csv
+            self.logger.record(TASK_RETURN_KEY, task_return)
 
     def _on_training_end(self) -> None:
         self.bar.set_postfix_str("", refresh=False)
@@ -469,6 +504,10 @@ def evaluate_transfer(
 ) -> EvaluationSummary:
     """Runs a task policy deterministically and summarises the task's returns.
 
+    Returns are the task's own (``info["task_return"]`` where the task reports it), so a
+    policy trained with a shaping term such as go-to-target's ``approach_reward`` is
+    scored on the task's reward alone.
+
     Args:
         policy_path: A ``policy.safetensors`` from :func:`train_transfer`.
         episodes: Episodes to run.
@@ -489,14 +528,14 @@ def evaluate_transfer(
     )
     for episode in bar:
         observation, _ = env.reset(seed=seed + episode)
-        total, length, done = 0.0, 0, False
+        total, length, done, info = 0.0, 0, False, {}
         while not done:
             action = policy.act({k: v[None] for k, v in observation.items()})[0]
-            observation, reward, terminated, truncated, _ = env.step(action)
+            observation, reward, terminated, truncated, info = env.step(action)
             total += float(reward)
             length += 1
             done = terminated or truncated
-        returns.append(total)
+        returns.append(float(info.get("task_return", total)))  # without training terms such as approach_reward
         lengths.append(length)
     return EvaluationSummary(
         task=policy.spec.task,

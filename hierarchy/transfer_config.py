@@ -11,6 +11,13 @@ RESUME_FREE_FIELDS = ("total_steps", "checkpoint_every", "device", "subprocess_e
 """Settings a resumed run may change (a longer budget, other checkpointing or hardware); the report
 also treats runs differing only in these (and the seed) as one setting."""
 
+SB3_RETURN_KEY = "rollout/ep_rew_mean"
+"""``progress.csv`` column: SB3's mean training-episode return (every reward term) of the last 100 episodes."""
+
+TASK_RETURN_KEY = "rollout/task_return_mean"
+"""``progress.csv`` column: the same for the task's own return (``info["task_return"]``, no training terms
+such as go-to-target's ``approach_reward``); written when the task reports it."""
+
 
 @dataclass(frozen=True)
 class TransferConfig:

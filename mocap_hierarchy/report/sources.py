@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from hierarchy.transfer_config import RESUME_FREE_FIELDS
+from hierarchy.transfer_config import RESUME_FREE_FIELDS, SB3_RETURN_KEY, TASK_RETURN_KEY
 
 SKIPPED_FOLDERS = {"checkpoint", "tensorboard", "report", "__pycache__"}
 """Folders never searched: training internals and the report's own output."""
@@ -103,7 +103,8 @@ class TransferRun:
         on_decoder: The policy acts through a decoder (else on joint targets).
         seed: The run's seed.
         steps: Control steps at each update (high-level steps times ``steps_per_latent``).
-        returns: Mean training-episode return at each update.
+        returns: Mean training-episode return at each update: the task's own (``rollout/task_return_mean``)
+            where the run logged it, else SB3's ``rollout/ep_rew_mean`` (equal unless the task adds a training term).
         task_overrides: The task's settings that differ from its defaults (``transfer.json``).
         config: The run's PPO settings (``transfer.json``).
         variant: The decoder and PPO settings in which this run differs from others of its task,
@@ -280,7 +281,8 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
     steps, returns = [], []
     with progress.open(newline="") as handle:
         for row in csv.DictReader(handle):
-            step, value = row.get("time/total_timesteps", ""), row.get("rollout/ep_rew_mean", "")
+            # the task's own return where the run logged it (it leaves out training terms such as approach_reward)
+            step, value = row.get("time/total_timesteps", ""), row.get(TASK_RETURN_KEY) or row.get(SB3_RETURN_KEY, "")
             if step and value:
                 steps.append(float(step))
                 returns.append(float(value))

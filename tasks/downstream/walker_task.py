@@ -8,6 +8,12 @@ the feet touching the floor) and the step limit.
 
 Observations always include every proprioceptive observable (so any decoder
 finds its inputs) plus the task's own keys.
+
+Every step's ``info`` carries ``task_reward`` (the task's own reward for the step)
+and ``task_return`` (its sum so far in the episode). They equal the reward and the
+return unless the task adds an opt-in training term to its reward (go-to-target's
+``approach_reward``): curves and evaluations read them so that runs with and
+without such a term are scored alike.
 """
 
 from __future__ import annotations
@@ -70,6 +76,7 @@ class WalkerTaskEnv(gym.Env):
         self.action_space = gym.spaces.Box(-1.0, 1.0, (self.walker.num_joints,), np.float64)
         self._body_geoms, self._ground_geoms = self.walker.fall_geoms()
         self._steps = 0
+        self._task_return = 0.0
         self._episode_active = False
 
     # Hooks -------------------------------------------------------------------
@@ -79,7 +86,10 @@ class WalkerTaskEnv(gym.Env):
         raise NotImplementedError
 
     def _task_step(self) -> tuple[float, bool, dict]:
-        """Scores the step just simulated: ``(reward, task_terminated, info)``."""
+        """Scores the step just simulated: ``(reward, task_terminated, info)``.
+
+        A task whose reward adds a training term puts its own reward in ``info["task_reward"]``.
+        """
         raise NotImplementedError
 
     def _task_observation(self) -> dict[str, np.ndarray]:
@@ -103,6 +113,7 @@ class WalkerTaskEnv(gym.Env):
         forward_without_actuation(self._model, self._data)
         mujoco.mj_subtreeVel(self._model, self._data)
         self._steps = 0
+        self._task_return = 0.0
         self._episode_active = True
         return self._observation(), {}
 
@@ -118,9 +129,12 @@ class WalkerTaskEnv(gym.Env):
         reward, task_terminated, info = self._task_step()
         terminated = fell or diverged or task_terminated
         truncated = not terminated and self._steps >= self._max_steps
+        task_reward = float(info.get("task_reward", reward))
         if diverged:
-            reward = 0.0
+            reward = task_reward = 0.0
             info["physics_diverged"] = True
+        self._task_return += task_reward
+        info["task_reward"], info["task_return"] = task_reward, self._task_return
         info["fell"] = fell
         if terminated or truncated:
             self._episode_active = False

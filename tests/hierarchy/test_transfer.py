@@ -185,3 +185,33 @@ def test_transfer_says_when_it_updates_and_when_it_evaluates(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "PPO update: up to 2 epochs over 64 steps" in err  # the bar at 100% says what it waits for
     assert "evaluating on velocity_control (deterministic)" in err and "2/2" in err
+
+
+def test_task_returns_keep_ended_episodes_of_tasks_that_report_them():
+    from hierarchy.transfer import TaskReturns
+
+    kept = TaskReturns(window=2)
+    assert kept.mean() is None
+    kept.add([{"task_return": 3.0}, {"task_return": 9.0}, {}], [True, False, True])  # running, or no task return
+    assert kept.mean() == 3.0
+    kept.add([{"task_return": 5.0}, {"task_return": 7.0}, {}], [True, True, False])
+    assert kept.mean() == 6.0  # only the last two episodes
+
+
+def test_a_shaped_task_is_logged_and_evaluated_on_its_own_reward(tmp_path):
+    import csv
+
+    from hierarchy.transfer_config import SB3_RETURN_KEY, TASK_RETURN_KEY
+    from mocap_hierarchy.report.sources import find_run_contents
+
+    settings = {"max_steps": 20, "approach_reward": 50.0}  # a large term: shaped and task returns differ
+    policy = train_transfer("go_to_target", tmp_path / "gtt", None, TINY, settings, progress=False)
+    with open(tmp_path / "gtt" / "progress.csv") as f:
+        rows = [r for r in csv.DictReader(f) if r.get(SB3_RETURN_KEY)]
+    assert rows and all(r[TASK_RETURN_KEY] for r in rows)
+    shaped, task = (np.array([float(r[k]) for r in rows]) for k in (SB3_RETURN_KEY, TASK_RETURN_KEY))
+    assert np.all((task >= 0) & (task <= 20)) and not np.allclose(shaped, task)  # sparse: 0 or 1 per step
+    (run,) = find_run_contents(tmp_path).transfer
+    np.testing.assert_allclose(run.returns, task)  # the report and transfer_table read the task's return
+    summary = evaluate_transfer(policy, episodes=3)
+    assert all(r == int(r) and 0 <= r <= 20 for r in summary.returns)  # the task's 0/1 rewards, no shaping

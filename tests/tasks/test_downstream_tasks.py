@@ -102,3 +102,40 @@ def test_go_to_target_observation_is_egocentric(clip_library):
     expected = world @ data.xmat[root].reshape(3, 3)
     np.testing.assert_allclose(observation["walker/target"], expected)
     assert np.linalg.norm(observation["walker/target"]) == pytest.approx(np.linalg.norm(world))
+
+
+def test_go_to_target_approach_reward_pays_the_distance_closed_and_reports_the_task_reward_apart(clip_library):
+    shaped = GoToTargetEnv(GoToTargetConfig(arena_size=20.0, approach_reward=2.0))
+    plain = GoToTargetEnv(GoToTargetConfig(arena_size=20.0))
+    shaped.reset(seed=5)
+    plain.reset(seed=5)
+    start = np.linalg.norm(shaped.target[:2] - shaped.root_position()[:2])
+    rng = np.random.default_rng(0)
+    total, task_total = 0.0, 0.0
+    for _ in range(30):  # the walker falls about somewhere; the target is far (never reached)
+        action = rng.uniform(-1, 1, 56)
+        _, value, terminated, _, info = shaped.step(action)
+        _, plain_value, _, _, plain_info = plain.step(action)
+        total += value
+        task_total += info["task_reward"]
+        assert info["task_reward"] == plain_value == plain_info["task_reward"]  # dm_control's reward, unchanged
+        assert info["task_return"] == pytest.approx(task_total)
+        if terminated:
+            break
+    end = info["distance_to_target"]
+    assert start > 1.0 and abs(start - end) > 1e-3  # the walker did move relative to the target
+    assert total - task_total == pytest.approx(2.0 * (start - end), rel=1e-9)  # the term sums to the distance closed
+    with pytest.raises(ValueError, match="approach_reward"):
+        GoToTargetEnv(GoToTargetConfig(approach_reward=-1.0))
+
+
+def test_go_to_target_approach_reward_restarts_from_a_moved_target(clip_library):
+    # Within 1 m of every target: the term only sees the walker's small motion, never a moved target's jump.
+    env = GoToTargetEnv(GoToTargetConfig(arena_size=0.5, approach_reward=100.0))
+    env.reset(seed=0)
+    first = env.target
+    for _ in range(12):
+        _, value, _, _, info = env.step(np.zeros(56))
+        assert info["task_reward"] == 1.0 and abs(value - 1.0) < 100.0 * 0.05
+    assert not np.allclose(env.target, first)
+    assert info["task_return"] == 12.0
