@@ -162,7 +162,8 @@ def build_report(run: str | Path, out: str | Path | None = None, evaluate_episod
             Section(
                 "Transfer: high-level training curves",
                 "transfer_curves.png",
-                "Mean training-episode return against environment steps; band: min to max over seeds.",
+                "Mean training-episode return (the task's own reward, without training terms such as "
+                "approach_reward) against environment steps; band: min to max over seeds.",
                 ["task and action space", "seeds", "steps (all seeds)", "first return", "last return (mean)"],
                 [
                     [

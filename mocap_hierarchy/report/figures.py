@@ -191,7 +191,7 @@ def plot_transfer_curves(runs: list[TransferRun], path: Path) -> Path:
                 axis.fill_between(band["steps"], band["min"], band["max"], color=line.get_color(), alpha=0.2)
         axis.set_title(task)
         axis.set_xlabel("environment (control) steps")
-        axis.set_ylabel("mean training-episode return")
+        axis.set_ylabel("mean training-episode return\n(the task's own reward)")
         axis.grid(alpha=0.3)
         axis.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.15))  # below: labels can be long
     for axis in list(axes.flat)[len(tasks) :]:
