@@ -63,12 +63,12 @@ def prior_alone_summary(
     """The decoder driven by its shipped latent prior, no policy, on the same episodes."""
     import tasks
     from hierarchy import LatentActionEnv, load_decoder
-    from hierarchy.latent_prior import load_latent_prior, resolve_prior
+    from hierarchy.latent_prior import load_latent_prior
 
     env = LatentActionEnv(
         tasks.make("go_to_target", **{**task_overrides, **_limit(max_steps)}),
         load_decoder(decoder),
-        prior=load_latent_prior(resolve_prior(decoder)),
+        prior=load_latent_prior(decoder),  # the prior shipped with the named decoder
     )
     zero = np.zeros(env.action_space.shape)
     bar = tqdm(seeds, desc=f"{decoder} prior alone", unit="episode", leave=False)

@@ -86,22 +86,19 @@ class GoToTargetEnv(WalkerTaskEnv):
         self._last_distance = float(np.linalg.norm(self._target[:2] - position))
         return position, heading
 
-    def _distance(self) -> float:
-        return float(np.linalg.norm(self._target[:2] - self.root_position()[:2]))
-
     def _task_step(self) -> tuple[float, bool, dict]:
         # dm_control's order: the target moves (after_step), then the reward is read.
-        if self.config.moving_target and self._rewarded_steps >= self.config.steps_before_moving_target:
+        moved = self.config.moving_target and self._rewarded_steps >= self.config.steps_before_moving_target
+        if moved:
             self._target = np.append(self._random_position(), 0.0)
             self._rewarded_steps = 0
-            self._last_distance = self._distance()  # progress counts towards the new target from here
-        distance = self._distance()
+        distance = float(np.linalg.norm(self._target[:2] - self.root_position()[:2]))
         task_reward = 0.0
         if distance < self.config.distance_tolerance:
             task_reward = 1.0
             if self.config.moving_target:
                 self._rewarded_steps += 1
-        closed = self._last_distance - distance
+        closed = 0.0 if moved else self._last_distance - distance  # a new target: progress restarts here
         self._last_distance = distance
         reward = task_reward + self.config.approach_reward * closed
         return reward, False, {"distance_to_target": distance, "task_reward": task_reward}
