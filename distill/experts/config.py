@@ -76,10 +76,10 @@ class ExpertConfig:
         device: Torch device for the networks (``auto``, ``cpu``, ``cuda``).
         seed: Random seed.
         branch_from: A run folder (``SNIPPET/`` expert directories inside) whose checkpoint of this
-            snippet this run continues with its own settings: the networks, the observation
-            normaliser, the step count and the curve so far (empty: start from scratch). With a
-            branch that changes nothing beside it, one change can be measured against the same
-            starting point (``benchmarks/expert_learning.py``).
+            snippet (or, once that run has finished, its kept expert) this run continues with its
+            own settings: the networks, the observation normaliser, the step count and the curve
+            so far (empty: start from scratch). With a branch that changes nothing beside it, one
+            change can be measured against the same starting point (``benchmarks/expert_learning.py``).
     """
 
     total_steps: int = 150_000_000

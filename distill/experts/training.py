@@ -438,23 +438,21 @@ def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, conf
 
 
 def _branch(expert: ExpertDir, vec_env, config: ExpertConfig, settings: PpoSettings):
-    """PPO and callback state continuing another run's checkpoint of this snippet with ``config``'s settings.
+    """PPO and callback state continuing another run's policy of this snippet with ``config``'s settings.
 
+    The source is the run's checkpoint while it is under way, else (a finished run keeps no
+    checkpoint) its kept expert: the best model, saved with its optimiser and normaliser.
     The branch keeps the source's networks, observation normaliser, step count, wall time and
-    evaluations (its curve starts where the source's stopped); the optimiser's step size,
-    discount, update sizes and (fixed) action noise become the branch's. Its best model is
-    chosen among its own evaluations.
+    evaluations up to that step (its curve starts where the source's policy was saved); the
+    optimiser's step size, discount, update sizes and (fixed) action noise become the branch's.
+    Its best model is chosen among its own evaluations.
 
     Raises:
-        ExpertFilesError: The source has no checkpoint of this snippet.
+        ExpertFilesError: The source has neither a checkpoint nor a kept expert of this snippet.
         ConfigMismatchError: The branch changes a setting in :data:`BRANCH_MUST_MATCH`.
     """
     source = expert_dir_for(config.branch_from, expert.root.name)
-    if not source.checkpoint_state.is_file():
-        raise ExpertFilesError(
-            f"branch_from={config.branch_from}: {source.root} has no checkpoint to branch from "
-            "(a finished expert removes its checkpoint; branch from a run that is still under way)"
-        )
+    start = _branch_start(source, config.branch_from)
     source_config = expert_config_from_json(json.loads(source.config.read_text()))
     differ = [k for k in BRANCH_MUST_MATCH if getattr(source_config, k) != getattr(config, k)]
     if differ:
@@ -463,8 +461,8 @@ def _branch(expert: ExpertDir, vec_env, config: ExpertConfig, settings: PpoSetti
             + ", ".join(f"{k}={getattr(source_config, k)!r}" for k in differ)
         )
     model = load_ppo(
-        source.checkpoint_model,
-        source.checkpoint_normaliser,
+        start.model,
+        start.normaliser,
         vec_env,
         config.device,
         learning_rate=settings.learning_rate,
@@ -479,14 +477,49 @@ def _branch(expert: ExpertDir, vec_env, config: ExpertConfig, settings: PpoSetti
     model.get_vec_normalize_env().gamma = config.gamma
     if not config.learn_action_std:
         _set_fixed_noise(model, config.action_std_at(int(model.num_timesteps)))
-    source_state = json.loads(source.checkpoint_state.read_text())
     steps = int(model.num_timesteps)
-    evaluations = [{**e, "branched_from": str(source.root)} for e in source_state["evaluations"]]
+    evaluations = [{**e, "branched_from": str(source.root)} for e in start.evaluations if e["steps"] <= steps]
     _copy_progress_until(source.progress, expert.progress, steps)
-    print(f"branching {expert.root} from {source.root} at step {steps}")
+    print(f"branching {expert.root} from {start.model} at step {steps}")
     state = _fresh_state(steps, config)
-    state.update(evaluations=evaluations, wall_seconds_before=source_state.get("wall_seconds_before", 0.0))
+    state.update(evaluations=evaluations, wall_seconds_before=start.wall_seconds)
     return model, state
+
+
+@dataclass(frozen=True)
+class _BranchStart:
+    """What a branch starts from: SB3 files, the source's evaluations so far and its wall time then."""
+
+    model: Path
+    normaliser: Path
+    evaluations: list[dict]
+    wall_seconds: float
+
+
+def _branch_start(source: ExpertDir, branch_from: str) -> _BranchStart:
+    """The source run's checkpoint if it has one, else its kept expert (a finished run's best model).
+
+    Raises:
+        ExpertFilesError: Neither is there, or the finished run kept no evaluated model.
+    """
+    if source.checkpoint_state.is_file():
+        state = json.loads(source.checkpoint_state.read_text())
+        return _BranchStart(
+            source.checkpoint_model,
+            source.checkpoint_normaliser,
+            state["evaluations"],
+            state.get("wall_seconds_before", 0.0),
+        )
+    kept = source.done.is_file() and source.best_model.is_file() and source.vecnormalize.is_file()
+    best = json.loads(source.done.read_text()).get("best") if kept else None
+    if not best:
+        raise ExpertFilesError(
+            f"branch_from={branch_from}: {source.root} has no checkpoint and no kept expert to branch from "
+            "(expected checkpoint/ of a run under way, or done.json with eval_rsi/model/best_model.zip "
+            "and vecnormalize.pkl of a finished one)"
+        )
+    evaluations = json.loads(source.evaluations.read_text()) if source.evaluations.is_file() else []
+    return _BranchStart(source.best_model, source.vecnormalize, evaluations, float(best.get("wall_seconds", 0.0)))
 
 
 def _set_fixed_noise(model: PPO, std: float) -> None:

@@ -278,9 +278,39 @@ def test_a_branch_starts_with_its_noise_schedules_value_at_the_sources_step(
     vec_env.close()
 
 
-def test_a_branch_needs_a_checkpoint_and_the_sources_networks(clip_library, tmp_path, monkeypatch, snippet, tiny):
+def test_a_branch_of_a_finished_run_starts_from_its_kept_expert(clip_library, tmp_path, trained_expert, snippet, tiny):
+    source = ExpertDir(trained_expert)
+    best = json.loads(source.done.read_text())["best"]
+    before = {path.name: path.read_bytes() for path in (source.done, source.evaluations, source.best_model)}
+    kept_weights = PPO.load(source.best_model, device="cpu").policy.state_dict()
+    branch = dataclasses.replace(
+        tiny, total_steps=best["steps"] + 512, action_std=0.2, branch_from=str(trained_expert.parent)
+    )
+    vec_env = _vec_env(training_task((snippet,), str(clip_library), branch), branch)
+    started = ExpertDir(tmp_path / "peek" / snippet)
+    started.root.mkdir(parents=True)
+    model, state, continued = _resume_or_build(started, vec_env, None, branch)
+    vec_env.close()
+    assert continued and model.num_timesteps == best["steps"]
+    weights = model.policy.state_dict()
+    for name, value in kept_weights.items():  # the kept expert's networks, with the branch's noise
+        expected = torch.full_like(value, np.log(0.2)) if name == "log_std" else value
+        assert torch.allclose(weights[name], expected), name
+    source_steps = [e["steps"] for e in json.loads(source.evaluations.read_text())]
+    assert [e["steps"] for e in state["evaluations"]] == [s for s in source_steps if s <= best["steps"]]
+    assert all(e["branched_from"] == str(source.root) for e in state["evaluations"])
+    assert state["wall_seconds_before"] == pytest.approx(best["wall_seconds"])
+
+    result = train_expert(snippet, tmp_path / "branch", branch, progress=False)
+    assert result.steps == best["steps"] + 512 and result.best["steps"] > best["steps"]
+    assert {path.name: path.read_bytes() for path in (source.done, source.evaluations, source.best_model)} == before
+
+
+def test_a_branch_needs_a_checkpoint_or_a_kept_expert_and_the_sources_networks(
+    clip_library, tmp_path, monkeypatch, snippet, tiny
+):
     config = dataclasses.replace(tiny, total_steps=1536)
-    with pytest.raises(ExpertFilesError, match="no checkpoint to branch from"):
+    with pytest.raises(ExpertFilesError, match="no checkpoint and no kept expert"):
         train_expert(snippet, tmp_path / "b1", dataclasses.replace(config, branch_from=str(tmp_path)), progress=False)
     _interrupted_run(tmp_path / "source", snippet, config, monkeypatch)
     wider = dataclasses.replace(config, hidden_layers=(64, 64), branch_from=str(tmp_path / "source"))
