@@ -142,6 +142,49 @@ def load_ppo(model_path: Path, normaliser_path: Path, venv: Any, device: str, **
     return PPO.load(str(model_path), env=normaliser, device=device, **custom)
 
 
+ROLLOUT_SCHEDULE_ATTRIBUTE = "collect_rollouts"
+"""The instance attribute :func:`follow_rollout_schedule` sets: leave it out of saved models (``exclude``)."""
+
+
+def follow_rollout_schedule(model: Any, steps_per_env_at: Callable[[int], int]) -> None:
+    """Makes an SB3 on-policy ``model`` size each rollout by ``steps_per_env_at(model.num_timesteps)``.
+
+    SB3 fixes the rollout length (``n_steps``) when it builds the model. Here each rollout
+    asks the schedule first, at the step it starts from, and on a change the rollout
+    buffer is rebuilt at the new length before collecting, so an update never mixes two
+    sizes and the update that follows trains on the new buffer. Everything else (the
+    step-size schedule, which reads the progress through the whole budget, callbacks,
+    the last observations) is untouched. The schedule lives on the instance only:
+    save such a model with :data:`ROLLOUT_SCHEDULE_ATTRIBUTE` in ``exclude`` and call
+    this again after loading it.
+    """
+    collect = type(model).collect_rollouts
+
+    def collect_rollouts(env: Any, callback: Any, rollout_buffer: Any, n_rollout_steps: int) -> bool:
+        wanted = int(steps_per_env_at(int(model.num_timesteps)))
+        if wanted != model.n_steps:
+            _resize_rollouts(model, wanted)
+        return collect(model, env, callback, model.rollout_buffer, model.n_steps)
+
+    setattr(model, ROLLOUT_SCHEDULE_ATTRIBUTE, collect_rollouts)
+
+
+def _resize_rollouts(model: Any, steps_per_env: int) -> None:
+    """A fresh rollout buffer of ``steps_per_env`` steps per environment, like the one SB3 built."""
+    old = model.rollout_buffer
+    model.n_steps = steps_per_env
+    model.rollout_buffer = type(old)(
+        steps_per_env,
+        model.observation_space,
+        model.action_space,
+        device=model.device,
+        gamma=model.gamma,
+        gae_lambda=model.gae_lambda,
+        n_envs=model.n_envs,
+        **model.rollout_buffer_kwargs,
+    )
+
+
 def resumable_logger(folder: str | Path, formats: list[str], resumed: bool) -> Any:
     """SB3's logger writing ``folder/progress.csv`` (and the other ``formats``); a resumed run keeps the rows there.
 

@@ -18,7 +18,14 @@ class ExpertConfig:
 
     Attributes:
         total_steps: Environment steps budget.
-        steps_per_update: Environment steps collected per PPO update (all envs together).
+        steps_per_update: Environment steps collected per PPO update (all envs together); with
+            ``steps_per_update_steps``, the size until the first of them.
+        steps_per_update_steps: The environment steps from which updates collect the next of
+            ``later_steps_per_update`` (increasing; e.g. ``2000000`` with ``later_steps_per_update``
+            ``16384``): the first rollout that starts at or after such a step has the new size, so no
+            update mixes two sizes; empty: one size for the whole run.
+        later_steps_per_update: The steps per update from each of ``steps_per_update_steps`` on (as
+            many as those steps; each a multiple of the number of environments).
         epochs: PPO epochs per update.
         minibatch_size: PPO minibatch size.
         clip_range: PPO clipping parameter.
@@ -84,6 +91,8 @@ class ExpertConfig:
 
     total_steps: int = 150_000_000
     steps_per_update: int = 8192
+    steps_per_update_steps: tuple[int, ...] = ()
+    later_steps_per_update: tuple[int, ...] = ()
     epochs: int = 10
     minibatch_size: int = 512
     clip_range: float = 0.25
@@ -133,6 +142,11 @@ class ExpertConfig:
         """The fixed training noise at environment step ``steps`` (``action_std``, then ``later_action_stds``)."""
         return value_at_step((self.action_std, *self.later_action_stds), self.action_std_steps, steps)
 
+    def steps_per_update_at(self, steps: int) -> int:
+        """Environment steps per update for a rollout starting at step ``steps`` (``steps_per_update``, then later)."""
+        sizes = (self.steps_per_update, *self.later_steps_per_update)
+        return int(value_at_step(sizes, self.steps_per_update_steps, steps))
+
     def resolved_envs(self) -> int:
         """Number of environments: ``n_envs``, or as many as CPU cores that divide ``steps_per_update``."""
         if self.n_envs > 0:
@@ -151,6 +165,7 @@ class ExpertConfig:
             )
         if self.minibatch_size > self.steps_per_update:
             raise ValueError("minibatch_size cannot exceed steps_per_update")
+        self._validate_update_schedule()
         if not self.learning_rates or min(self.learning_rates) <= 0:
             raise ValueError("learning_rates must be positive")
         if self.learning_rate_steps:
@@ -178,6 +193,24 @@ class ExpertConfig:
             raise ValueError("eval_every, eval_episodes and checkpoint_every must be positive")
         if self.final_eval_episodes < 0:
             raise ValueError("final_eval_episodes must be 0 (none) or positive")
+
+    def _validate_update_schedule(self) -> None:
+        steps, sizes = self.steps_per_update_steps, self.later_steps_per_update
+        if len(steps) != len(sizes):
+            raise ValueError(
+                f"steps_per_update_steps {steps} and later_steps_per_update {sizes} must be as many "
+                "(each step names where the next update size starts)"
+            )
+        if not steps:
+            return
+        _check_switch_steps("steps_per_update_steps", steps)
+        envs = self.resolved_envs()
+        for size in sizes:
+            if size < self.minibatch_size or size % envs:
+                raise ValueError(
+                    f"later_steps_per_update {sizes}: each must be at least minibatch_size ({self.minibatch_size}) "
+                    f"and a multiple of the number of environments ({envs})"
+                )
 
     def _validate_noise_schedule(self) -> None:
         steps, stds = self.action_std_steps, self.later_action_stds

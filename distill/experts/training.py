@@ -42,14 +42,23 @@ from foundation.atomic import atomic_path, write_json
 from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
 from foundation.provenance import provenance
 from foundation.resume import SettingsMismatchError, check_same_settings
-from foundation.sb3 import PpoSettings, build_ppo, load_ppo, resumable_logger, save_sb3
+from foundation.sb3 import (
+    ROLLOUT_SCHEDULE_ATTRIBUTE,
+    PpoSettings,
+    build_ppo,
+    follow_rollout_schedule,
+    load_ppo,
+    resumable_logger,
+    save_sb3,
+)
 from tasks.clips.format import list_clips
 from tasks.clips.snippets import SnippetId, parse_snippet_id
 from tasks.clips.sources import resolve_clip_file
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 from tasks.walker import build_walker
 
-_SB3_SAVE_EXCLUDE = ["learning_rate", "lr_schedule"]  # our schedule class stays out of SB3's pickles
+# Our schedules (step size, rollout size) stay out of SB3's pickles: they are rebuilt from the settings.
+_SB3_SAVE_EXCLUDE = ["learning_rate", "lr_schedule", ROLLOUT_SCHEDULE_ATTRIBUTE]
 
 
 ConfigMismatchError = SettingsMismatchError
@@ -146,6 +155,8 @@ class _ExpertCallback(BaseCallback):
             std = config.action_std_at(self.num_timesteps)
             _set_fixed_noise(self.model, std)
             self.logger.record("train/action_std", std)
+        if config.steps_per_update_steps:
+            self.logger.record("train/steps_per_update", config.steps_per_update_at(self.num_timesteps))
         if config.termination_curriculum_steps:
             threshold = config.training_threshold(self.num_timesteps)
             self.model.get_env().env_method("set_termination_threshold", threshold)
@@ -430,6 +441,9 @@ def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, conf
         model = build_ppo(VecNormalize(vec_env, norm_obs=True, norm_reward=True, gamma=config.gamma), settings)
         state = _fresh_state(0, config)
     state["recent"] = []
+    if config.steps_per_update_steps:
+        envs = config.resolved_envs()
+        follow_rollout_schedule(model, lambda steps: config.steps_per_update_at(steps) // envs)
     if not config.learn_action_std:
         model.policy.log_std.requires_grad_(False)  # the experts' action noise is fixed (MoCapAct)
     continued = resume_state is not None or bool(config.branch_from)

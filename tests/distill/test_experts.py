@@ -177,6 +177,46 @@ def test_a_noise_schedule_drops_the_training_noise_at_its_step_also_across_a_res
     assert resumed == pytest.approx({step: straight[step] for step in resumed})
 
 
+def test_an_update_size_schedule_grows_the_updates_at_its_step_also_across_a_resume(
+    clip_library, tmp_path, monkeypatch, snippet, tiny
+):
+    # 512 steps per update, 1024 from step 1024 on: updates end at 512, 1024, 2048, 3072. One step
+    # size, so that the budgets of the two runs compared below do not move the seed's thirds.
+    tiny = dataclasses.replace(tiny, learning_rates=(1e-4,))
+    config = dataclasses.replace(tiny, total_steps=3072, steps_per_update_steps=(1024,), later_steps_per_update=(1024,))
+    train_expert(snippet, tmp_path / "straight", config, progress=False)
+    straight = ExpertDir(tmp_path / "straight" / snippet)
+    sizes = _logged(straight, "train/steps_per_update")  # logged by the rollout that ends at the row's step
+    assert sizes == {512: 512, 1024: 512, 2048: 1024, 3072: 1024}
+
+    # Before the switch, the scheduled run is the run without a schedule, update for update.
+    train_expert(snippet, tmp_path / "plain", dataclasses.replace(tiny, total_steps=1024), progress=False)
+    plain = _logged(ExpertDir(tmp_path / "plain" / snippet), "train/value_loss")
+    assert {step: _logged(straight, "train/value_loss")[step] for step in plain} == plain
+
+    killed = _interrupted_run(tmp_path / "killed", snippet, config, monkeypatch)  # resumes from step 512
+    result = train_expert(snippet, tmp_path / "killed", config, progress=False)
+    assert result.steps == 3072
+    resumed = _logged(killed, "train/steps_per_update")
+    assert resumed.keys() >= {2048, 3072} and resumed == {step: sizes[step] for step in resumed}
+    saved = json.loads(straight.done.read_text())["config"]
+    assert saved["later_steps_per_update"] == [1024]  # the schedule is part of the run's settings
+
+
+def test_update_size_schedule_values_and_checks():
+    config = ExpertConfig(steps_per_update=4096, steps_per_update_steps=(2_000_000,), later_steps_per_update=(16384,))
+    config.validate()
+    assert [config.steps_per_update_at(s) for s in (0, 1_999_999, 2_000_000, 3_000_000)] == [4096, 4096, 16384, 16384]
+    with pytest.raises(ValueError, match="as many"):
+        ExpertConfig(steps_per_update_steps=(5,)).validate()
+    with pytest.raises(ValueError, match="increasing"):
+        ExpertConfig(steps_per_update_steps=(6, 5), later_steps_per_update=(8192, 8192)).validate()
+    with pytest.raises(ValueError, match="minibatch_size"):
+        ExpertConfig(steps_per_update_steps=(5,), later_steps_per_update=(256,)).validate()
+    with pytest.raises(ValueError, match="multiple of the number of environments"):
+        ExpertConfig(n_envs=8, steps_per_update_steps=(5,), later_steps_per_update=(8196,)).validate()
+
+
 def test_noise_schedule_values_and_checks():
     config = ExpertConfig(action_std=0.3, action_std_steps=(2_000_000, 2_500_000), later_action_stds=(0.2, 0.15))
     config.validate()
