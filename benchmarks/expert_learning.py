@@ -80,27 +80,34 @@ def run_dir(out: Path, variant: str, seed: int) -> Path:
     return out / variant / f"seed{seed}"
 
 
-def _expert_dirs(out: Path, record: dict):
-    """``(variant, expert directory)`` of every run a sweep record names (found on disk or not)."""
+def _expert_dirs(out: Path, record: dict, per_seed: bool = False):
+    """``(label, expert directory)`` of every run a sweep record names (found on disk or not).
+
+    The label is the variant, or ``VARIANT/seedN`` with ``per_seed`` (each seed a line and a row of its own).
+    """
     for variant in record["variants"]:
         for seed in record["seeds"]:
+            label = f"{variant}/seed{seed}" if per_seed else variant
             for snippet in record["snippets"]:
-                yield variant, expert_dir_for(run_dir(out, variant, seed), snippet)
+                yield label, expert_dir_for(run_dir(out, variant, seed), snippet)
 
 
-def curves_on_disk(out: Path, record: dict) -> dict[str, list[list[dict]]]:
-    """Evaluation records of every run found, per variant (one list per seed and snippet)."""
+def curves_on_disk(out: Path, record: dict, per_seed: bool = False) -> dict[str, list[list[dict]]]:
+    """Evaluation records of every run found, per variant (one list per seed and snippet) or per variant and seed."""
     curves: dict[str, list[list[dict]]] = {}
-    for variant, expert in _expert_dirs(out, record):
+    for label, expert in _expert_dirs(out, record, per_seed):
         if expert.evaluations.is_file():
-            curves.setdefault(variant, []).append(json.loads(expert.evaluations.read_text()))
+            curves.setdefault(label, []).append(json.loads(expert.evaluations.read_text()))
     return curves
 
 
-def final_evaluations_on_disk(out: Path, record: dict) -> dict[str, list[dict]]:
-    """Per variant, the finished runs' final evaluations (``done.json``; absent without ``final_eval_episodes``)."""
+def final_evaluations_on_disk(out: Path, record: dict, per_seed: bool = False) -> dict[str, list[dict]]:
+    """Per variant (or variant and seed), the finished runs' final evaluations (``done.json``).
+
+    Runs trained without ``final_eval_episodes`` have none.
+    """
     finals: dict[str, list[dict]] = {}
-    for variant, expert in _expert_dirs(out, record):
+    for variant, expert in _expert_dirs(out, record, per_seed):
         if expert.done.is_file() and "final_evaluation" in (summary := json.loads(expert.done.read_text())):
             finals.setdefault(variant, []).append(summary["final_evaluation"])
     return finals
@@ -275,6 +282,9 @@ def main() -> None:
         help="also print each variant's mean normalised length and reward over its evaluations at "
         "START <= steps <= END (repeatable; written to the summary as spans)",
     )
+    parser.add_argument(
+        "--per-seed", action="store_true", help="a curve and a table row per variant and seed, not their mean"
+    )
     args = parser.parse_args()
     for start, end in args.span:
         if start > end:
@@ -317,10 +327,10 @@ def main() -> None:
     suffix = f"-{'+'.join(only)}" if only else ""
     if only:
         record = {**record, "snippets": only}
-    curves = curves_on_disk(args.out, record)
+    curves = curves_on_disk(args.out, record, args.per_seed)
     if not curves:
         raise SystemExit(f"no evaluations under {args.out} yet")
-    summary = summarise(curves, final_evaluations_on_disk(args.out, record))
+    summary = summarise(curves, final_evaluations_on_disk(args.out, record, args.per_seed))
     title = args.title or f"{', '.join(record['snippets'])}: {args.steps:,} steps per run"
     plot(curves, title, args.out / f"expert_learning{suffix}.png")
     print_table(summary)

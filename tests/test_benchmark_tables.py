@@ -1,6 +1,7 @@
 """Stretches of runs in the README's benchmark tables (``expert_learning.py --span``, ``transfer_table.py --since``)."""
 
 import importlib.util
+import json
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -49,6 +50,25 @@ def test_print_spans_names_each_span_and_keeps_its_rows(sweep_tool, capsys):
     assert table["a"]["1.425M-2.025M"]["normalized_length"] == pytest.approx(0.8)
     assert table["a"]["2.025M-3M"]["normalized_length"] == pytest.approx(0.9)
     assert "1.425M-2.025M" in capsys.readouterr().out
+
+
+def test_per_seed_curves_keep_each_seed_apart_and_the_default_pools_them(sweep_tool, tmp_path):
+    record = {"variants": {"a": {}}, "seeds": [0, 1, 2], "snippets": ["SYN_wave-0-196"]}
+    for seed, length in ((0, 0.5), (1, 0.9)):  # seed 2 has not written anything yet
+        expert = sweep_tool.expert_dir_for(sweep_tool.run_dir(tmp_path, "a", seed), "SYN_wave-0-196")
+        expert.evaluations.parent.mkdir(parents=True)
+        expert.evaluations.write_text(json.dumps(evaluations((0, length))))
+        expert.done.write_text(json.dumps({"final_evaluation": {"normalized_length": length}}))
+
+    pooled = sweep_tool.curves_on_disk(tmp_path, record)
+    assert list(pooled) == ["a"] and [run[0]["normalized_length"] for run in pooled["a"]] == [0.5, 0.9]
+    apart = sweep_tool.curves_on_disk(tmp_path, record, per_seed=True)
+    assert {k: [run[0]["normalized_length"] for run in v] for k, v in apart.items()} == {
+        "a/seed0": [0.5],
+        "a/seed1": [0.9],
+    }
+    finals = sweep_tool.final_evaluations_on_disk(tmp_path, record, per_seed=True)
+    assert {k: [f["normalized_length"] for f in v] for k, v in finals.items()} == {"a/seed0": [0.5], "a/seed1": [0.9]}
 
 
 def test_transfer_table_keeps_only_the_updates_of_the_stretch_every_seed_reached():
