@@ -196,14 +196,9 @@ class ExpertConfig:
 
     def _validate_update_schedule(self) -> None:
         steps, sizes = self.steps_per_update_steps, self.later_steps_per_update
-        if len(steps) != len(sizes):
-            raise ValueError(
-                f"steps_per_update_steps {steps} and later_steps_per_update {sizes} must be as many "
-                "(each step names where the next update size starts)"
-            )
+        _check_schedule(("steps_per_update_steps", steps), ("later_steps_per_update", sizes), "update size")
         if not steps:
             return
-        _check_switch_steps("steps_per_update_steps", steps)
         envs = self.resolved_envs()
         for size in sizes:
             if size < self.minibatch_size or size % envs:
@@ -214,17 +209,23 @@ class ExpertConfig:
 
     def _validate_noise_schedule(self) -> None:
         steps, stds = self.action_std_steps, self.later_action_stds
-        if len(steps) != len(stds):
-            raise ValueError(
-                f"action_std_steps {steps} and later_action_stds {stds} must be as many "
-                "(each step names where the next noise starts)"
-            )
-        if steps:
-            _check_switch_steps("action_std_steps", steps)
+        _check_schedule(("action_std_steps", steps), ("later_action_stds", stds), "noise")
         if stds and min(stds) <= 0:
             raise ValueError(f"later_action_stds {stds} must be positive")
         if steps and self.learn_action_std:
             raise ValueError("a noise schedule (action_std_steps) fixes the noise; it cannot go with learn_action_std")
+
+
+def _check_schedule(steps: tuple[str, tuple[int, ...]], values: tuple[str, tuple], what: str) -> None:
+    """Raises ValueError unless a schedule's ``(name, switch steps)`` and ``(name, later values)`` pair up."""
+    (steps_name, switch_steps), (values_name, later) = steps, values
+    if len(switch_steps) != len(later):
+        raise ValueError(
+            f"{steps_name} {switch_steps} and {values_name} {later} must be as many "
+            f"(each step names where the next {what} starts)"
+        )
+    if switch_steps:
+        _check_switch_steps(steps_name, switch_steps)
 
 
 def _check_switch_steps(name: str, steps: tuple[int, ...]) -> None:
