@@ -47,8 +47,19 @@ class EvaluationResult:
     config: dict
 
     def to_json(self) -> dict:
-        """A JSON-ready dict."""
-        return asdict(self)
+        """A JSON-ready dict (with the standard error of the mean normalised length)."""
+        return {**asdict(self), "normalized_length_standard_error": self.standard_error("normalized_length")}
+
+    def standard_error(self, metric: str) -> float:
+        """Standard error of the mean of a per-episode ``metric`` (NaN with fewer than two episodes).
+
+        How far the mean over these episodes may lie from the policy's own: e.g. about 0.005
+        in normalised length over the seed's 1000 episodes for a turning expert near 0.9.
+        """
+        values = np.asarray(self.per_episode[metric], dtype=float)
+        if values.size < 2:
+            return float("nan")
+        return float(values.std(ddof=1) / np.sqrt(values.size))
 
     @classmethod
     def from_episodes(cls, snippet: str, per_episode: dict[str, list[float]], config: dict) -> EvaluationResult:

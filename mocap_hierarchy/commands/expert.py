@@ -182,14 +182,18 @@ def _evaluate(args: argparse.Namespace) -> None:
     experts = find_experts(args.experts)  # expert directories or folders of them; each snippet once
     results = []
     print(
-        f"{'snippet':<28}{'norm. reward':>14}{'norm. length':>14}{'episodes':>10}   init={config.init} "
+        f"{'snippet':<28}{'norm. reward':>14}{'norm. length':>14}{'(s.e.)':>9}{'episodes':>10}   init={config.init} "
         f"noise={config.action_noise}"
     )
     for snippet, expert in experts.items():
         policy = load_expert(expert.root, trust_pickle=args.trust_pickle, evaluation=args.evaluation)
         result = evaluate_policy(policy, snippet, config, clips=args.clips, progress=True)
         results.append(result.to_json())
-        print(f"{snippet:<28}{result.normalized_reward:>14.3f}{result.normalized_length:>14.3f}{config.episodes:>10}")
+        error = result.standard_error("normalized_length")
+        print(
+            f"{snippet:<28}{result.normalized_reward:>14.3f}{result.normalized_length:>14.3f}{error:>9.4f}"
+            f"{config.episodes:>10}"
+        )
     if args.json:
         from foundation.atomic import write_json
 

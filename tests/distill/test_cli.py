@@ -1,5 +1,6 @@
 import json
 
+import numpy as np
 import pytest
 
 from distill.dataset.reader import RolloutDataset
@@ -36,7 +37,10 @@ def test_expert_train_eval_and_rollout(clip_library, tmp_path, capsys):
     assert "SYN_stand-0-181" in capsys.readouterr().out
     evaluation = json.loads(results.read_text())
     assert evaluation["config"]["action_noise"] == 0.0
-    assert 0.0 < evaluation["results"][0]["normalized_length"] <= 1.0
+    result = evaluation["results"][0]
+    assert 0.0 < result["normalized_length"] <= 1.0
+    lengths = np.asarray(result["per_episode"]["normalized_length"])
+    assert result["normalized_length_standard_error"] == pytest.approx(lengths.std(ddof=1) / 2.0)  # sqrt(4)
 
     dataset = tmp_path / "dataset"
     assert main(["rollout", "--experts", str(experts), "--out", str(dataset), "--n-start", "1", "--n-rsi", "2"]) == 0

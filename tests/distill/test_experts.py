@@ -16,7 +16,7 @@ from distill.experts.config import (
     expert_profiles,
     with_changes,
 )
-from distill.experts.evaluation import training_task
+from distill.experts.evaluation import EvaluationResult, training_task
 from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
 from distill.experts.loading import load_expert
 from distill.experts.training import (
@@ -556,3 +556,15 @@ def test_the_final_evaluation_scores_the_kept_expert_with_its_own_seed(
     assert final["normalized_reward"] == pytest.approx(again.normalized_reward)
     with pytest.raises(ValueError, match="final_eval_episodes"):
         ExpertConfig(final_eval_episodes=-1).validate()
+
+
+def test_an_evaluation_gives_the_standard_error_of_its_mean():
+    lengths = [0.5, 1.0, 0.75, 1.0]
+    metrics = {"normalized_reward": [0.2, 0.4, 0.3, 0.5], "normalized_length": lengths, "return": [1.0] * 4}
+    result = EvaluationResult.from_episodes("SYN_wave-0-196", {**metrics, "length": [10, 20, 15, 20]}, {})
+    assert result.standard_error("normalized_length") == pytest.approx(np.std(lengths, ddof=1) / 2.0)
+    assert result.to_json()["normalized_length_standard_error"] == pytest.approx(0.1197, abs=1e-4)
+    assert result.standard_error("return") == 0.0
+    single = {key: values[:1] for key, values in {**metrics, "length": [10]}.items()}
+    one = EvaluationResult.from_episodes("SYN_wave-0-196", single, {})
+    assert np.isnan(one.standard_error("normalized_length"))
