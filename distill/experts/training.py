@@ -156,7 +156,7 @@ class _ExpertCallback(BaseCallback):
             _set_fixed_noise(self.model, std)
             self.logger.record("train/action_std", std)
         if config.steps_per_update_steps:
-            self.logger.record("train/steps_per_update", config.steps_per_update_at(self.num_timesteps))
+            self.logger.record("train/steps_per_update", self.model.n_steps * self.model.n_envs)  # this rollout's
         if config.termination_curriculum_steps:
             threshold = config.training_threshold(self.num_timesteps)
             self.model.get_env().env_method("set_termination_threshold", threshold)
