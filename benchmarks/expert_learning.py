@@ -107,9 +107,9 @@ def final_evaluations_on_disk(out: Path, record: dict, per_seed: bool = False) -
     Runs trained without ``final_eval_episodes`` have none.
     """
     finals: dict[str, list[dict]] = {}
-    for variant, expert in _expert_dirs(out, record, per_seed):
+    for label, expert in _expert_dirs(out, record, per_seed):
         if expert.done.is_file() and "final_evaluation" in (summary := json.loads(expert.done.read_text())):
-            finals.setdefault(variant, []).append(summary["final_evaluation"])
+            finals.setdefault(label, []).append(summary["final_evaluation"])
     return finals
 
 

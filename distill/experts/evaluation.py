@@ -47,8 +47,9 @@ class EvaluationResult:
     config: dict
 
     def to_json(self) -> dict:
-        """A JSON-ready dict (with the standard error of the mean normalised length)."""
-        return {**asdict(self), "normalized_length_standard_error": self.standard_error("normalized_length")}
+        """A JSON-ready dict (with the standard error of the mean normalised length; null below two episodes)."""
+        error = self.standard_error("normalized_length")
+        return {**asdict(self), "normalized_length_standard_error": None if np.isnan(error) else error}
 
     def standard_error(self, metric: str) -> float:
         """Standard error of the mean of a per-episode ``metric`` (NaN with fewer than two episodes).

@@ -568,3 +568,4 @@ def test_an_evaluation_gives_the_standard_error_of_its_mean():
     single = {key: values[:1] for key, values in {**metrics, "length": [10]}.items()}
     one = EvaluationResult.from_episodes("SYN_wave-0-196", single, {})
     assert np.isnan(one.standard_error("normalized_length"))
+    assert one.to_json()["normalized_length_standard_error"] is None  # JSON has no NaN
