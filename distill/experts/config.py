@@ -76,6 +76,10 @@ class ExpertConfig:
         early_stop_improvement: Relative improvement of the normalised reward that counts.
         early_stop_patience: Stop after this many steps without such an improvement.
         checkpoint_every: Save a resumable checkpoint every this many steps.
+        snapshot_steps: Also keep the resumable state at each of these steps (taken like a checkpoint,
+            at the first environment step at or after it, after that step's evaluation) in
+            ``snapshots/<STEP>/``, left when training ends, so that later runs can branch from
+            there (``branch_step``) instead of training those steps again.
         n_envs: Parallel environments; 0 means one per CPU core (at most, so that
             they divide ``steps_per_update``).
         subprocess_envs: Run environments in worker processes (else all in this process).
@@ -87,6 +91,8 @@ class ExpertConfig:
             own settings: the networks, the observation normaliser, the step count and the curve
             so far (empty: start from scratch). With a branch that changes nothing beside it, one
             change can be measured against the same starting point (``benchmarks/expert_learning.py``).
+        branch_step: With ``branch_from``, start from that run's snapshot for this step
+            (``snapshot_steps``) rather than its checkpoint or kept expert (0: not a snapshot).
     """
 
     total_steps: int = 150_000_000
@@ -124,12 +130,14 @@ class ExpertConfig:
     early_stop_improvement: float = 0.01
     early_stop_patience: int = 10_000_000
     checkpoint_every: int = 1_000_000
+    snapshot_steps: tuple[int, ...] = ()
     n_envs: int = 0
     subprocess_envs: bool = True
     torch_threads: int = 0
     device: str = "auto"
     seed: int = 0
     branch_from: str = ""
+    branch_step: int = 0
 
     def training_threshold(self, steps: int) -> float:
         """The termination threshold training uses at ``steps`` (the curriculum's, else ``termination_threshold``)."""
@@ -193,6 +201,13 @@ class ExpertConfig:
             raise ValueError("eval_every, eval_episodes and checkpoint_every must be positive")
         if self.final_eval_episodes < 0:
             raise ValueError("final_eval_episodes must be 0 (none) or positive")
+        if self.snapshot_steps:
+            _check_switch_steps("snapshot_steps", self.snapshot_steps)
+        if self.branch_step < 0 or (self.branch_step and not self.branch_from):
+            raise ValueError(
+                f"branch_step ({self.branch_step}) names a snapshot of the run in branch_from: "
+                "give branch_from too, and a step of 0 (no snapshot) or more"
+            )
 
     def _validate_update_schedule(self) -> None:
         steps, sizes = self.steps_per_update_steps, self.later_steps_per_update

@@ -12,6 +12,7 @@ One directory per snippet expert, named by the snippet id::
         eval_rsi/evaluations.json       evaluation history during training
         config.json                     the ExpertConfig used
         checkpoint/                     resumable training state (removed once done)
+        snapshots/<STEP>/               resumable states kept at chosen steps (snapshot_steps; kept)
         done.json                       written when training has finished
 
 ``best_model.zip`` and ``vecnormalize.pkl`` load with stable-baselines3's own
@@ -42,6 +43,28 @@ EXPERT_FORMAT_VERSION = 2
 
 class ExpertFilesError(FileNotFoundError):
     """An expert directory is missing files or holds unreadable ones."""
+
+
+@dataclass(frozen=True)
+class ResumableFiles:
+    """The files of one resumable training state (a checkpoint or a snapshot) in ``directory``."""
+
+    directory: Path
+
+    @property
+    def model(self) -> Path:
+        """The stable-baselines3 PPO (networks and optimiser)."""
+        return self.directory / "model.zip"
+
+    @property
+    def normaliser(self) -> Path:
+        """The ``VecNormalize``."""
+        return self.directory / "vecnormalize.pkl"
+
+    @property
+    def state(self) -> Path:
+        """The training-callback state, written last: its presence marks a complete set."""
+        return self.directory / "state.json"
 
 
 @dataclass(frozen=True)
@@ -113,17 +136,33 @@ class ExpertDir:
     @property
     def checkpoint_model(self) -> Path:
         """The checkpoint's stable-baselines3 PPO."""
-        return self.checkpoint_dir / "model.zip"
+        return ResumableFiles(self.checkpoint_dir).model
 
     @property
     def checkpoint_normaliser(self) -> Path:
         """The checkpoint's ``VecNormalize``."""
-        return self.checkpoint_dir / "vecnormalize.pkl"
+        return ResumableFiles(self.checkpoint_dir).normaliser
 
     @property
     def checkpoint_state(self) -> Path:
         """The checkpoint's training-callback state (written last: its presence marks a complete checkpoint)."""
-        return self.checkpoint_dir / "state.json"
+        return ResumableFiles(self.checkpoint_dir).state
+
+    @property
+    def snapshots_dir(self) -> Path:
+        """Resumable states kept at chosen steps (``ExpertConfig.snapshot_steps``); training leaves them."""
+        return self.root / "snapshots"
+
+    def snapshot(self, steps: int) -> ResumableFiles:
+        """The snapshot taken for step ``steps``: the same three files as ``checkpoint/``."""
+        return ResumableFiles(self.snapshots_dir / str(steps))
+
+    def snapshot_steps(self) -> list[int]:
+        """The steps of the complete snapshots on disk (those whose state file was written), in order."""
+        if not self.snapshots_dir.is_dir():
+            return []
+        found = (int(d.name) for d in self.snapshots_dir.iterdir() if d.name.isdigit())
+        return sorted(s for s in found if self.snapshot(s).state.is_file())
 
     @property
     def done(self) -> Path:

@@ -35,7 +35,7 @@ from distill.experts.config import (
 )
 from distill.experts.evaluation import EvaluationConfig, evaluate_policy, training_task
 from distill.experts.fanout import Job
-from distill.experts.files import ExpertDir, ExpertFilesError, expert_dir_for, write_clip_info
+from distill.experts.files import ExpertDir, ExpertFilesError, ResumableFiles, expert_dir_for, write_clip_info
 from distill.experts.loading import load_expert
 from distill.experts.policy import policy_from_sb3
 from foundation.atomic import atomic_path, write_json
@@ -103,6 +103,7 @@ def _training_fields(config: ExpertConfig) -> dict:
         "device",
         "eval_at_start",
         "final_eval_episodes",
+        "snapshot_steps",
     }
     return {k: v for k, v in asdict(config).items() if k not in ignore}
 
@@ -135,12 +136,19 @@ class _ExpertCallback(BaseCallback):
         self.stop = stop
         self.bar: tqdm | None = None
         self.stop_reason = "budget"
+        self.pending_snapshots: list[int] = []
 
     def _on_training_start(self) -> None:
         model = self.model
         assert isinstance(model, PPO)
         if self.trainer.config.eval_at_start and not self.state["evaluations"]:
             self.trainer.evaluate(model, 0, self.state)
+        expert = self.trainer.expert
+        self.pending_snapshots = [
+            s
+            for s in self.trainer.config.snapshot_steps
+            if s >= self.num_timesteps and not expert.snapshot(s).state.is_file()
+        ]
         self.bar = tqdm(
             total=self.trainer.config.total_steps,
             initial=self.num_timesteps,
@@ -181,9 +189,11 @@ class _ExpertCallback(BaseCallback):
                 self.stop_reason = "early_stop"
         if self.num_timesteps >= self.state["next_checkpoint"]:
             self.state["next_checkpoint"] += config.checkpoint_every
-            self.trainer.checkpoint(model, self.state)
+            self.trainer.save_resumable(model, self.state)
+        while self.pending_snapshots and self.num_timesteps >= self.pending_snapshots[0]:  # after its evaluation
+            self.trainer.save_resumable(model, self.state, self.trainer.expert.snapshot(self.pending_snapshots.pop(0)))
         if self.stop.requested:  # Ctrl-C or SIGTERM: save where we are and leave PPO's loop
-            self.trainer.checkpoint(model, self.state)
+            self.trainer.save_resumable(model, self.state)
             self.stop_reason = "stopped"
             return False
         return continue_training
@@ -296,15 +306,15 @@ class _Trainer:
         save_sb3(model, venv, self.expert.best_model, self.expert.vecnormalize, _SB3_SAVE_EXCLUDE)
         policy.save(self.expert)
 
-    def checkpoint(self, model: PPO, state: dict) -> None:
-        """Writes a resumable checkpoint (model, normaliser, callback state)."""
-        expert = self.expert
+    def save_resumable(self, model: PPO, state: dict, files: ResumableFiles | None = None) -> None:
+        """Writes the resumable state (model, normaliser, callback state) to ``files``, by default the checkpoint."""
+        files = files or ResumableFiles(self.expert.checkpoint_dir)
         venv = model.get_vec_normalize_env()
         assert venv is not None
-        save_sb3(model, venv, expert.checkpoint_model, expert.checkpoint_normaliser, _SB3_SAVE_EXCLUDE)
+        save_sb3(model, venv, files.model, files.normaliser, _SB3_SAVE_EXCLUDE)
         saved = {k: v for k, v in state.items() if k != "recent"}
         saved["wall_seconds_before"] = self.wall_seconds(state)
-        write_json(expert.checkpoint_state, {**saved, "steps": int(model.num_timesteps)})
+        write_json(files.state, {**saved, "steps": int(model.num_timesteps)})  # last: marks the set complete
 
 
 def train_expert(
@@ -466,7 +476,7 @@ def _branch(expert: ExpertDir, vec_env, config: ExpertConfig, settings: PpoSetti
         ConfigMismatchError: The branch changes a setting in :data:`BRANCH_MUST_MATCH`.
     """
     source = expert_dir_for(config.branch_from, expert.root.name)
-    start = _branch_start(source, config.branch_from)
+    start = _branch_start(source, config)
     source_config = expert_config_from_json(json.loads(source.config.read_text()))
     differ = [k for k in BRANCH_MUST_MATCH if getattr(source_config, k) != getattr(config, k)]
     if differ:
@@ -510,20 +520,28 @@ class _BranchStart:
     wall_seconds: float
 
 
-def _branch_start(source: ExpertDir, branch_from: str) -> _BranchStart:
-    """The source run's checkpoint if it has one, else its kept expert (a finished run's best model).
+def _branch_start(source: ExpertDir, config: ExpertConfig) -> _BranchStart:
+    """Where a branch starts: the source's snapshot for ``branch_step``, its checkpoint, or its kept expert.
+
+    A snapshot is used when ``branch_step`` asks for one; otherwise the checkpoint of a run
+    under way, else the kept expert (best model) of a finished one.
 
     Raises:
-        ExpertFilesError: Neither is there, or the finished run kept no evaluated model.
+        ExpertFilesError: The snapshot is missing; or neither of the others is there, or the
+            finished run kept no evaluated model.
     """
+    branch_from = config.branch_from
+    if config.branch_step:
+        snapshot = source.snapshot(config.branch_step)
+        if not snapshot.state.is_file():
+            kept = ", ".join(map(str, source.snapshot_steps())) or "none"
+            raise ExpertFilesError(
+                f"branch_from={branch_from}, branch_step={config.branch_step}: {source.root} has no snapshot "
+                f"for that step (snapshots there: {kept}); snapshots are kept by a run with snapshot_steps"
+            )
+        return _resumable_start(snapshot)
     if source.checkpoint_state.is_file():
-        state = json.loads(source.checkpoint_state.read_text())
-        return _BranchStart(
-            source.checkpoint_model,
-            source.checkpoint_normaliser,
-            state["evaluations"],
-            state.get("wall_seconds_before", 0.0),
-        )
+        return _resumable_start(ResumableFiles(source.checkpoint_dir))
     kept = source.done.is_file() and source.best_model.is_file() and source.vecnormalize.is_file()
     best = json.loads(source.done.read_text()).get("best") if kept else None
     if not best:
@@ -534,6 +552,12 @@ def _branch_start(source: ExpertDir, branch_from: str) -> _BranchStart:
         )
     evaluations = json.loads(source.evaluations.read_text()) if source.evaluations.is_file() else []
     return _BranchStart(source.best_model, source.vecnormalize, evaluations, float(best.get("wall_seconds", 0.0)))
+
+
+def _resumable_start(files: ResumableFiles) -> _BranchStart:
+    """A branch's start from a checkpoint or a snapshot."""
+    state = json.loads(files.state.read_text())
+    return _BranchStart(files.model, files.normaliser, state["evaluations"], state.get("wall_seconds_before", 0.0))
 
 
 def _set_fixed_noise(model: PPO, std: float) -> None:

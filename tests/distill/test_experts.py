@@ -23,6 +23,7 @@ from distill.experts.training import (
     ConfigMismatchError,
     _resume_or_build,
     _Trainer,
+    _training_fields,
     _vec_env,
     keep_training,
     train_expert,
@@ -356,6 +357,49 @@ def test_a_branch_needs_a_checkpoint_or_a_kept_expert_and_the_sources_networks(
     wider = dataclasses.replace(config, hidden_layers=(64, 64), branch_from=str(tmp_path / "source"))
     with pytest.raises(ConfigMismatchError, match=r"hidden_layers=\(32, 32\)"):
         train_expert(snippet, tmp_path / "b2", wider, progress=False)
+
+
+def test_snapshots_are_kept_after_training_without_changing_it_and_a_branch_starts_from_one(
+    clip_library, tmp_path, trained_expert, snippet, tiny
+):
+    config = dataclasses.replace(tiny, snapshot_steps=(500, 1024))
+    train_expert(snippet, tmp_path / "source", config, progress=False)
+    source = ExpertDir(tmp_path / "source" / snippet)
+    assert not source.checkpoint_dir.exists() and source.snapshot_steps() == [500, 1024]
+    states = {s: json.loads(source.snapshot(s).state.read_text()) for s in (500, 1024)}
+    assert [states[s]["steps"] for s in (500, 1024)] == [500, 1024]
+    assert [e["steps"] for e in states[1024]["evaluations"]] == [0, 512, 1024]  # taken after that step's evaluation
+    unsnapshotted = json.loads(ExpertDir(trained_expert).evaluations.read_text())  # the same settings, no snapshots
+    scores = [(e["normalized_length"], e["normalized_reward"]) for e in json.loads(source.evaluations.read_text())]
+    assert scores == [(e["normalized_length"], e["normalized_reward"]) for e in unsnapshotted]
+
+    branch = dataclasses.replace(
+        config, total_steps=1536, snapshot_steps=(), branch_from=str(tmp_path / "source"), branch_step=500
+    )
+    vec_env = _vec_env(training_task((snippet,), str(clip_library), branch), branch)
+    started = ExpertDir(tmp_path / "peek" / snippet)
+    started.root.mkdir(parents=True)
+    model, state, continued = _resume_or_build(started, vec_env, None, branch)
+    vec_env.close()
+    assert continued and model.num_timesteps == 500 and [e["steps"] for e in state["evaluations"]] == [0]
+    snapshot_weights = PPO.load(source.snapshot(500).model, device="cpu").policy.state_dict()
+    later_weights = PPO.load(source.snapshot(1024).model, device="cpu").policy.state_dict()
+    weights = model.policy.state_dict()
+    assert all(torch.equal(weights[name], value) for name, value in snapshot_weights.items())
+    assert not all(torch.equal(weights[name], value) for name, value in later_weights.items())  # an update later
+
+    with pytest.raises(ExpertFilesError, match=r"no snapshot for that step \(snapshots there: 500, 1024\)"):
+        train_expert(snippet, tmp_path / "b", dataclasses.replace(branch, branch_step=700), progress=False)
+
+
+def test_snapshot_and_branch_step_settings_are_checked_and_snapshots_do_not_block_a_resume(tiny):
+    with pytest.raises(ValueError, match=r"snapshot_steps \(1000, 500\) must be positive and increasing"):
+        dataclasses.replace(tiny, snapshot_steps=(1000, 500)).validate()
+    with pytest.raises(ValueError, match="give branch_from too"):
+        dataclasses.replace(tiny, branch_step=500).validate()
+    dataclasses.replace(tiny, branch_step=500, branch_from="runs/x", snapshot_steps=(500,)).validate()
+    assert _training_fields(tiny) == _training_fields(dataclasses.replace(tiny, snapshot_steps=(500,)))
+    assert _training_fields(tiny) != _training_fields(dataclasses.replace(tiny, branch_step=500))
 
 
 def test_kl_adaptive_learning_rate_follows_the_updates_kl():
