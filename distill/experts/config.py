@@ -65,7 +65,11 @@ class ExpertConfig:
         train_min_steps: Random training starts exclude the last ``train_min_steps + 1`` frames.
         eval_every: Evaluate every this many environment steps.
         eval_at_start: Also evaluate the untrained policy (step 0), so curves start at the beginning.
-        eval_episodes: Episodes per evaluation.
+        eval_episodes: Episodes per evaluation (until the first of ``eval_episodes_steps``).
+        eval_episodes_steps: The environment steps from which evaluations use the next of
+            ``later_eval_episodes``: larger evaluations late in training choose the kept expert
+            (the best normalised reward) with less noise than many small ones.
+        later_eval_episodes: Episodes per evaluation from each of ``eval_episodes_steps`` on.
         eval_min_steps: Evaluation starts exclude the last ``eval_min_steps + 1`` frames (30).
         eval_action_noise: Action noise during evaluation (deterministic policy plus this noise).
         final_eval_episodes: After training, evaluate the kept (best) expert once more over this many
@@ -123,6 +127,8 @@ class ExpertConfig:
     eval_every: int = 1_000_000
     eval_at_start: bool = True
     eval_episodes: int = 1000
+    eval_episodes_steps: tuple[int, ...] = ()
+    later_eval_episodes: tuple[int, ...] = ()
     eval_min_steps: int = 29
     eval_action_noise: float = 0.1
     final_eval_episodes: int = 0
@@ -154,6 +160,10 @@ class ExpertConfig:
         """Environment steps per update for a rollout starting at step ``steps`` (``steps_per_update``, then later)."""
         sizes = (self.steps_per_update, *self.later_steps_per_update)
         return int(value_at_step(sizes, self.steps_per_update_steps, steps))
+
+    def eval_episodes_at(self, steps: int) -> int:
+        """Episodes of the evaluation at environment step ``steps`` (``eval_episodes``, then later)."""
+        return int(value_at_step((self.eval_episodes, *self.later_eval_episodes), self.eval_episodes_steps, steps))
 
     def resolved_envs(self) -> int:
         """Number of environments: ``n_envs``, or as many as CPU cores that divide ``steps_per_update``."""
@@ -199,6 +209,13 @@ class ExpertConfig:
         self._validate_noise_schedule()
         if self.eval_every < 1 or self.eval_episodes < 1 or self.checkpoint_every < 1:
             raise ValueError("eval_every, eval_episodes and checkpoint_every must be positive")
+        _check_schedule(
+            ("eval_episodes_steps", self.eval_episodes_steps),
+            ("later_eval_episodes", self.later_eval_episodes),
+            "evaluation size",
+        )
+        if self.later_eval_episodes and min(self.later_eval_episodes) < 1:
+            raise ValueError(f"later_eval_episodes {self.later_eval_episodes} must be positive")
         if self.final_eval_episodes < 0:
             raise ValueError("final_eval_episodes must be 0 (none) or positive")
         if self.snapshot_steps:

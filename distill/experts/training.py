@@ -255,8 +255,14 @@ class _Trainer:
         venv = model.get_vec_normalize_env()
         assert isinstance(venv, VecNormalize)
         policy = self._policy(model, venv, steps)
-        evaluation = self._score(policy, config.eval_episodes, config.seed)
-        record = {"steps": int(steps), **evaluation, "wall_seconds": round(self.wall_seconds(state), 1)}
+        episodes = config.eval_episodes_at(steps)
+        evaluation = self._score(policy, episodes, config.seed)
+        record = {
+            "steps": int(steps),
+            "episodes": episodes,
+            **evaluation,
+            "wall_seconds": round(self.wall_seconds(state), 1),
+        }
         state["evaluations"].append(record)
         write_json(self.expert.evaluations, state["evaluations"])
         model.logger.record("eval/normalized_episode_reward", record["normalized_reward"])

@@ -402,6 +402,18 @@ def test_snapshot_and_branch_step_settings_are_checked_and_snapshots_do_not_bloc
     assert _training_fields(tiny) != _training_fields(dataclasses.replace(tiny, branch_step=500))
 
 
+def test_larger_evaluations_from_a_step_choose_the_kept_expert(tmp_path, clip_library, snippet, tiny):
+    config = dataclasses.replace(tiny, eval_episodes_steps=(1024,), later_eval_episodes=(7,))
+    result = train_expert(snippet, tmp_path, config, progress=False)
+    evaluations = json.loads(ExpertDir(Path(result.directory)).evaluations.read_text())
+    assert [(e["steps"], e["episodes"]) for e in evaluations] == [(0, 3), (512, 3), (1024, 7)]
+    assert [config.eval_episodes_at(s) for s in (0, 1023, 1024, 10**9)] == [3, 3, 7, 7]
+    with pytest.raises(ValueError, match=r"eval_episodes_steps .* and later_eval_episodes .* must be as many"):
+        dataclasses.replace(tiny, eval_episodes_steps=(1024,)).validate()
+    with pytest.raises(ValueError, match=r"later_eval_episodes \(0,\) must be positive"):
+        dataclasses.replace(tiny, eval_episodes_steps=(1024,), later_eval_episodes=(0,)).validate()
+
+
 def test_kl_adaptive_learning_rate_follows_the_updates_kl():
     schedule = KlAdaptiveLearningRate(1e-4, desired_kl=0.01, factor=2.0, low=3e-5, high=2e-4)
     assert schedule(1.0) == schedule(0.0) == 1e-4  # the remaining progress does not matter
