@@ -214,8 +214,6 @@ class ExpertConfig:
             ("later_eval_episodes", self.later_eval_episodes),
             "evaluation size",
         )
-        if self.later_eval_episodes and min(self.later_eval_episodes) < 1:
-            raise ValueError(f"later_eval_episodes {self.later_eval_episodes} must be positive")
         if self.final_eval_episodes < 0:
             raise ValueError("final_eval_episodes must be 0 (none) or positive")
         if self.snapshot_steps:
@@ -242,14 +240,15 @@ class ExpertConfig:
     def _validate_noise_schedule(self) -> None:
         steps, stds = self.action_std_steps, self.later_action_stds
         _check_schedule(("action_std_steps", steps), ("later_action_stds", stds), "noise")
-        if stds and min(stds) <= 0:
-            raise ValueError(f"later_action_stds {stds} must be positive")
         if steps and self.learn_action_std:
             raise ValueError("a noise schedule (action_std_steps) fixes the noise; it cannot go with learn_action_std")
 
 
 def _check_schedule(steps: tuple[str, tuple[int, ...]], values: tuple[str, tuple], what: str) -> None:
-    """Raises ValueError unless a schedule's ``(name, switch steps)`` and ``(name, later values)`` pair up."""
+    """Raises ValueError unless a schedule's ``(name, switch steps)`` and ``(name, later values)`` pair up.
+
+    The switch steps must be positive and increasing, and the later values positive.
+    """
     (steps_name, switch_steps), (values_name, later) = steps, values
     if len(switch_steps) != len(later):
         raise ValueError(
@@ -258,6 +257,8 @@ def _check_schedule(steps: tuple[str, tuple[int, ...]], values: tuple[str, tuple
         )
     if switch_steps:
         _check_switch_steps(steps_name, switch_steps)
+    if later and min(later) <= 0:
+        raise ValueError(f"{values_name} {later} must be positive")
 
 
 def _check_switch_steps(name: str, steps: tuple[int, ...]) -> None:

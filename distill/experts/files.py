@@ -134,19 +134,9 @@ class ExpertDir:
         return self.root / "checkpoint"
 
     @property
-    def checkpoint_model(self) -> Path:
-        """The checkpoint's stable-baselines3 PPO."""
-        return ResumableFiles(self.checkpoint_dir).model
-
-    @property
-    def checkpoint_normaliser(self) -> Path:
-        """The checkpoint's ``VecNormalize``."""
-        return ResumableFiles(self.checkpoint_dir).normaliser
-
-    @property
-    def checkpoint_state(self) -> Path:
-        """The checkpoint's training-callback state (written last: its presence marks a complete checkpoint)."""
-        return ResumableFiles(self.checkpoint_dir).state
+    def checkpoint(self) -> ResumableFiles:
+        """The checkpoint's files: model, normaliser and (written last) training-callback state."""
+        return ResumableFiles(self.checkpoint_dir)
 
     @property
     def snapshots_dir(self) -> Path:

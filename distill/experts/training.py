@@ -314,7 +314,7 @@ class _Trainer:
 
     def save_resumable(self, model: PPO, state: dict, files: ResumableFiles | None = None) -> None:
         """Writes the resumable state (model, normaliser, callback state) to ``files``, by default the checkpoint."""
-        files = files or ResumableFiles(self.expert.checkpoint_dir)
+        files = files or self.expert.checkpoint
         venv = model.get_vec_normalize_env()
         assert venv is not None
         save_sb3(model, venv, files.model, files.normaliser, _SB3_SAVE_EXCLUDE)
@@ -443,8 +443,8 @@ def _resume_or_build(expert: ExpertDir, vec_env, resume_state: dict | None, conf
     settings = _ppo_settings(config, resume_state)
     if resume_state is not None:
         model = load_ppo(
-            expert.checkpoint_model,
-            expert.checkpoint_normaliser,
+            expert.checkpoint.model,
+            expert.checkpoint.normaliser,
             vec_env,
             config.device,
             learning_rate=settings.learning_rate,
@@ -546,8 +546,8 @@ def _branch_start(source: ExpertDir, config: ExpertConfig) -> _BranchStart:
                 f"for that step (snapshots there: {kept}); snapshots are kept by a run with snapshot_steps"
             )
         return _resumable_start(snapshot)
-    if source.checkpoint_state.is_file():
-        return _resumable_start(ResumableFiles(source.checkpoint_dir))
+    if source.checkpoint.state.is_file():
+        return _resumable_start(source.checkpoint)
     kept = source.done.is_file() and source.best_model.is_file() and source.vecnormalize.is_file()
     best = json.loads(source.done.read_text()).get("best") if kept else None
     if not best:
@@ -634,7 +634,7 @@ def _finish(
 
 def _check_resume(expert: ExpertDir, config: ExpertConfig) -> dict | None:
     """The saved callback state if a compatible checkpoint exists."""
-    state_file = expert.checkpoint_state
+    state_file = expert.checkpoint.state
     if not state_file.is_file():
         return None
     if expert.config.is_file():

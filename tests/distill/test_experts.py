@@ -272,7 +272,7 @@ def test_a_branch_continues_another_runs_checkpoint_with_its_own_settings(
 ):
     config = dataclasses.replace(tiny, total_steps=1536)
     source = _interrupted_run(tmp_path / "source", snippet, config, monkeypatch)
-    source_weights = PPO.load(source.checkpoint_model, device="cpu").policy.state_dict()
+    source_weights = PPO.load(source.checkpoint.model, device="cpu").policy.state_dict()
     branch = dataclasses.replace(config, gamma=0.99, action_std=0.2, branch_from=str(tmp_path / "source"))
 
     vec_env = _vec_env(training_task((snippet,), str(clip_library), branch), branch)
@@ -298,7 +298,7 @@ def test_a_branch_continues_another_runs_checkpoint_with_its_own_settings(
     assert policy.gamma == 0.99 and policy.spec.action_std == pytest.approx(0.2)
     with expert.progress.open() as handle:
         assert [int(row["time/total_timesteps"]) for row in csv.DictReader(handle)] == [512, 1024, 1536]
-    assert source.checkpoint_state.is_file()  # the source is left as it was: it can still resume
+    assert source.checkpoint.state.is_file()  # the source is left as it was: it can still resume
 
 
 def test_a_branch_starts_with_its_noise_schedules_value_at_the_sources_step(
@@ -313,7 +313,7 @@ def test_a_branch_starts_with_its_noise_schedules_value_at_the_sources_step(
     started = ExpertDir(tmp_path / "peek" / snippet)
     started.root.mkdir(parents=True)
     model, _, _ = _resume_or_build(started, vec_env, None, branch)
-    source_std = PPO.load(source.checkpoint_model, device="cpu").policy.log_std.detach().exp()
+    source_std = PPO.load(source.checkpoint.model, device="cpu").policy.log_std.detach().exp()
     assert torch.allclose(source_std, torch.tensor(0.3))
     assert torch.allclose(model.policy.log_std.exp(), torch.tensor(0.2))  # 0.2 from 256 on, 0.1 from 1024
     vec_env.close()
