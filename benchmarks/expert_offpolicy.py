@@ -1,0 +1,204 @@
+"""Does an off-policy learner (SAC) beat ``--profile fast``'s PPO on samples? One snippet expert.
+
+Trains stable-baselines3's SAC on the same task the fast profile's PPO trains on (residual
+actions, reference observations, random starts, the seed's termination threshold) and
+evaluates it with the seed's protocol (random starts excluding the last 30 frames, the
+mean action plus noise 0.1, threshold 0.3) every ``--eval-every`` steps, as
+``benchmarks/expert_learning.py`` evaluates PPO. Observations are normalised with running
+statistics (SB3's ``VecNormalize``, rewards left as they are: the CoMic reward lies in
+[0, 1]). With ``--baseline`` it draws the SAC curve beside a PPO run's evaluations
+(against environment steps and wall time) and prints both at equal steps.
+
+SAC's update cost grows with the gradient steps per environment step (``--gradient-steps``
+per ``--n-envs`` steps; 1:1 by default, the usual setting), so the wall time matters as
+much as the steps: the table gives both.
+
+Usage::
+
+    python benchmarks/expert_offpolicy.py --out runs/offpolicy --steps 40000 --eval-every 10000
+    python benchmarks/expert_offpolicy.py --out runs/offpolicy --steps 40000 --baseline SNIPPET_FOLDER
+
+A finished run (its ``evaluations.json`` reaching ``--steps``) is only redrawn; an unfinished
+one starts again (SAC's replay buffer is not checkpointed).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import torch
+from stable_baselines3 import SAC
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+from distill.experts.config import EvaluationConfig, expert_profiles
+from distill.experts.evaluation import evaluate_policy, training_task
+from foundation.atomic import write_json
+from tasks.tracking.env import ClipTrackingEnv
+
+INITIAL_MEAN_SCALE = 0.01
+"""Factor on the actor's initial mean-action weights (PPO's action layer starts at gain 0.01 too)."""
+
+
+class SacExpert:
+    """A SAC actor seen through the interface :func:`evaluate_policy` reads (keys, action mode, mean actions)."""
+
+    def __init__(self, model: SAC, normaliser: VecNormalize, keys: list[str], residual_actions: bool) -> None:
+        self.model, self.normaliser, self.keys = model, normaliser, keys
+        self.spec = SimpleNamespace(residual_actions=residual_actions)
+
+    def mean_actions(self, observations: dict[str, np.ndarray]) -> np.ndarray:
+        """The actor's deterministic (squashed mean) actions for a batch of raw observations."""
+        raw = {key: np.asarray(value, dtype=np.float32) for key, value in observations.items()}
+        normalised = self.normaliser.normalize_obs(raw)
+        actions, _ = self.model.predict(normalised, deterministic=True)
+        return np.clip(np.asarray(actions, dtype=np.float64), -1.0, 1.0)
+
+
+class PeriodicEvaluation(BaseCallback):
+    """Evaluates the actor every ``every`` environment steps and writes the curve after each evaluation."""
+
+    def __init__(self, every: int, evaluate, path: Path) -> None:
+        super().__init__()
+        self.every, self.evaluate, self.path = every, evaluate, path
+        self.curve: list[dict] = []
+        self.next_at = 0
+        self.started = time.perf_counter()
+
+    def record(self) -> None:
+        """One evaluation at the current step, appended to the curve on disk."""
+        result = self.evaluate()
+        self.curve.append(
+            {
+                "steps": int(self.num_timesteps),
+                "normalized_length": result.normalized_length,
+                "normalized_reward": result.normalized_reward,
+                "wall_seconds": round(time.perf_counter() - self.started, 1),
+            }
+        )
+        write_json(self.path, self.curve)
+        print(
+            f"{self.num_timesteps:>8} steps: length {result.normalized_length:.3f}, "
+            f"reward {result.normalized_reward:.3f} ({self.curve[-1]['wall_seconds']:.0f} s)",
+            flush=True,
+        )
+        self.next_at = self.num_timesteps + self.every
+
+    def _on_training_start(self) -> None:
+        self.record()
+
+    def _on_step(self) -> bool:
+        if self.num_timesteps >= self.next_at:
+            self.record()
+        return True
+
+
+def train(args: argparse.Namespace, path: Path) -> None:
+    """SAC on the fast profile's task, evaluated along the way into ``path``."""
+    profile = expert_profiles()["fast"]
+    tracking = training_task((args.snippet,), None, profile)
+    envs = []
+    for i in range(args.n_envs):
+        env = ClipTrackingEnv(tracking)
+        env.reset(seed=args.seed * 1000 + i)
+        envs.append(lambda env=env: env)
+    normaliser = VecNormalize(DummyVecEnv(envs), norm_obs=True, norm_reward=False, gamma=profile.gamma)
+    model = SAC(
+        "MultiInputPolicy",
+        normaliser,
+        learning_rate=args.learning_rate,
+        buffer_size=args.steps,
+        learning_starts=args.learning_starts,
+        batch_size=args.batch_size,
+        gamma=profile.gamma,
+        train_freq=1,
+        gradient_steps=args.gradient_steps,
+        policy_kwargs={"net_arch": [256, 256]},
+        seed=args.seed,
+        device="cpu",
+    )
+    with torch.no_grad():  # a near-zero mean action plays the reference back, where PPO's residual experts start
+        model.actor.mu.weight.mul_(INITIAL_MEAN_SCALE)
+        model.actor.mu.bias.zero_()
+    keys = sorted(tracking.observables)
+    expert = SacExpert(model, normaliser, keys, profile.residual_actions)
+    protocol = EvaluationConfig(episodes=args.eval_episodes, termination_threshold=profile.termination_threshold)
+    callback = PeriodicEvaluation(args.eval_every, lambda: evaluate_policy(expert, args.snippet, protocol), path)
+    model.learn(total_timesteps=args.steps, callback=callback)
+    if callback.curve[-1]["steps"] < model.num_timesteps:
+        callback.record()
+
+
+STEP_TOLERANCE = 1000
+"""How far apart (environment steps) two evaluations may be to count as the same step in the table."""
+
+
+def compare(path: Path, baseline: Path | None, out: Path) -> None:
+    """Prints SAC against the PPO baseline at equal steps and draws both curves."""
+    sac = json.loads(path.read_text())
+    curves = {"SAC": sac}
+    if baseline is not None:
+        curves["PPO (--profile fast)"] = json.loads((baseline / "eval_rsi" / "evaluations.json").read_text())
+    print(f"{'steps':>8}  " + "  ".join(f"{name:>24}" for name in curves))
+    for point in sac:
+        row = []
+        for curve in curves.values():
+            nearest = min(curve, key=lambda p: abs(p["steps"] - point["steps"]))
+            close = abs(nearest["steps"] - point["steps"]) <= STEP_TOLERANCE
+            row.append(f"{nearest['normalized_length']:.3f} len, {nearest['wall_seconds']:>5.0f} s" if close else "-")
+        print(f"{point['steps']:>8}  " + "  ".join(f"{cell:>24}" for cell in row))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(1, 2, figsize=(10, 3.6))
+    for name, curve in curves.items():
+        steps = [p["steps"] for p in curve]
+        lengths = [p["normalized_length"] for p in curve]
+        axes[0].plot(steps, lengths, marker=".", label=name)
+        axes[1].plot([p["wall_seconds"] for p in curve], lengths, marker=".", label=name)
+    axes[0].set_xlabel("environment steps")
+    axes[1].set_xlabel("wall time (s)")
+    for axis in axes:
+        axis.set_ylabel("normalised episode length")
+        axis.set_ylim(0, 1)
+        axis.grid(alpha=0.3)
+    axes[0].legend()
+    figure.tight_layout()
+    figure.savefig(out, dpi=110)
+    print(f"plot: {out}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--out", type=Path, required=True, help="folder for evaluations.json and the plot")
+    parser.add_argument("--snippet", default="SYN_walk_slow-0-182")
+    parser.add_argument("--steps", type=int, default=200_000)
+    parser.add_argument("--eval-every", type=int, default=25_000)
+    parser.add_argument("--eval-episodes", type=int, default=50)
+    parser.add_argument("--n-envs", type=int, default=4)
+    parser.add_argument("--gradient-steps", type=int, default=4, help="per vectorised step (n_envs env steps)")
+    parser.add_argument("--batch-size", type=int, default=256)
+    parser.add_argument("--learning-rate", type=float, default=3e-4)
+    parser.add_argument("--learning-starts", type=int, default=1000)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--baseline", type=Path, help="a PPO run's snippet folder to compare against")
+    args = parser.parse_args()
+    if args.baseline is not None and not (args.baseline / "eval_rsi" / "evaluations.json").is_file():
+        parser.error(f"--baseline {args.baseline}: no eval_rsi/evaluations.json there (give a snippet folder)")
+    path = args.out / "evaluations.json"
+    finished = path.is_file() and json.loads(path.read_text())[-1]["steps"] >= args.steps
+    if not finished:
+        args.out.mkdir(parents=True, exist_ok=True)
+        train(args, path)
+    compare(path, args.baseline, args.out / "offpolicy.png")
+
+
+if __name__ == "__main__":
+    main()
