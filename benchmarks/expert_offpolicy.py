@@ -7,11 +7,11 @@ mean action plus noise 0.1, threshold 0.3) every ``--eval-every`` steps, as
 ``benchmarks/expert_learning.py`` evaluates PPO. Observations are normalised with running
 statistics (SB3's ``VecNormalize``, rewards left as they are: the CoMic reward lies in
 [0, 1]). With ``--baseline`` it draws the SAC curve beside a PPO run's evaluations
-(against environment steps and wall time) and prints both at equal steps.
+and prints both in ``expert_learning.py``'s table (best and last length, steps per second).
 
 SAC's update cost grows with the gradient steps per environment step (``--gradient-steps``
 per ``--n-envs`` steps; 1:1 by default, the usual setting), so the wall time matters as
-much as the steps: the table gives both.
+much as the steps: the table and the figure give both.
 
 Usage::
 
@@ -25,6 +25,7 @@ one starts again (SAC's replay buffer is not checkpointed).
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -32,14 +33,16 @@ from types import SimpleNamespace
 
 import numpy as np
 import torch
+from expert_learning import plot, print_table, summarise  # the sibling sweep tool (benchmarks/ is on the path)
 from stable_baselines3 import SAC
 from stable_baselines3.common.callbacks import BaseCallback
-from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+from stable_baselines3.common.vec_env import VecNormalize
 
 from distill.experts.config import EvaluationConfig, expert_profiles
 from distill.experts.evaluation import evaluate_policy, training_task
+from distill.experts.files import ExpertDir
+from distill.experts.training import _vec_env
 from foundation.atomic import write_json
-from tasks.tracking.env import ClipTrackingEnv
 
 INITIAL_MEAN_SCALE = 0.01
 """Factor on the actor's initial mean-action weights (PPO's action layer starts at gain 0.01 too)."""
@@ -102,12 +105,8 @@ def train(args: argparse.Namespace, path: Path) -> None:
     """SAC on the fast profile's task, evaluated along the way into ``path``."""
     profile = expert_profiles()["fast"]
     tracking = training_task((args.snippet,), None, profile)
-    envs = []
-    for i in range(args.n_envs):
-        env = ClipTrackingEnv(tracking)
-        env.reset(seed=args.seed * 1000 + i)
-        envs.append(lambda env=env: env)
-    normaliser = VecNormalize(DummyVecEnv(envs), norm_obs=True, norm_reward=False, gamma=profile.gamma)
+    envs = _vec_env(tracking, dataclasses.replace(profile, n_envs=args.n_envs, seed=args.seed))  # in-process
+    normaliser = VecNormalize(envs, norm_obs=True, norm_reward=False, gamma=profile.gamma)
     model = SAC(
         "MultiInputPolicy",
         normaliser,
@@ -134,44 +133,13 @@ def train(args: argparse.Namespace, path: Path) -> None:
         callback.record()
 
 
-STEP_TOLERANCE = 1000
-"""How far apart (environment steps) two evaluations may be to count as the same step in the table."""
-
-
-def compare(path: Path, baseline: Path | None, out: Path) -> None:
-    """Prints SAC against the PPO baseline at equal steps and draws both curves."""
-    sac = json.loads(path.read_text())
-    curves = {"SAC": sac}
+def compare(path: Path, baseline: Path | None, snippet: str, out: Path) -> None:
+    """SAC's curve beside the PPO baseline's: ``expert_learning.py``'s table and figure."""
+    curves = {"SAC": [json.loads(path.read_text())]}
     if baseline is not None:
-        curves["PPO (--profile fast)"] = json.loads((baseline / "eval_rsi" / "evaluations.json").read_text())
-    print(f"{'steps':>8}  " + "  ".join(f"{name:>24}" for name in curves))
-    for point in sac:
-        row = []
-        for curve in curves.values():
-            nearest = min(curve, key=lambda p: abs(p["steps"] - point["steps"]))
-            close = abs(nearest["steps"] - point["steps"]) <= STEP_TOLERANCE
-            row.append(f"{nearest['normalized_length']:.3f} len, {nearest['wall_seconds']:>5.0f} s" if close else "-")
-        print(f"{point['steps']:>8}  " + "  ".join(f"{cell:>24}" for cell in row))
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    figure, axes = plt.subplots(1, 2, figsize=(10, 3.6))
-    for name, curve in curves.items():
-        steps = [p["steps"] for p in curve]
-        lengths = [p["normalized_length"] for p in curve]
-        axes[0].plot(steps, lengths, marker=".", label=name)
-        axes[1].plot([p["wall_seconds"] for p in curve], lengths, marker=".", label=name)
-    axes[0].set_xlabel("environment steps")
-    axes[1].set_xlabel("wall time (s)")
-    for axis in axes:
-        axis.set_ylabel("normalised episode length")
-        axis.set_ylim(0, 1)
-        axis.grid(alpha=0.3)
-    axes[0].legend()
-    figure.tight_layout()
-    figure.savefig(out, dpi=110)
+        curves["PPO (--profile fast)"] = [json.loads(ExpertDir(baseline).evaluations.read_text())]
+    print_table(summarise(curves))
+    plot(curves, f"{snippet}: SAC against PPO", out)
     print(f"plot: {out}")
 
 
@@ -190,14 +158,14 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--baseline", type=Path, help="a PPO run's snippet folder to compare against")
     args = parser.parse_args()
-    if args.baseline is not None and not (args.baseline / "eval_rsi" / "evaluations.json").is_file():
+    if args.baseline is not None and not ExpertDir(args.baseline).evaluations.is_file():
         parser.error(f"--baseline {args.baseline}: no eval_rsi/evaluations.json there (give a snippet folder)")
     path = args.out / "evaluations.json"
     finished = path.is_file() and json.loads(path.read_text())[-1]["steps"] >= args.steps
     if not finished:
         args.out.mkdir(parents=True, exist_ok=True)
         train(args, path)
-    compare(path, args.baseline, args.out / "offpolicy.png")
+    compare(path, args.baseline, args.snippet, args.out / "offpolicy.png")
 
 
 if __name__ == "__main__":

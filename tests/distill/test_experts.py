@@ -402,7 +402,7 @@ def test_snapshot_and_branch_step_settings_are_checked_and_snapshots_do_not_bloc
     assert _training_fields(tiny) != _training_fields(dataclasses.replace(tiny, branch_step=500))
 
 
-def test_larger_evaluations_from_a_step_choose_the_kept_expert(tmp_path, clip_library, snippet, tiny):
+def test_evaluations_grow_to_later_eval_episodes_from_their_step(tmp_path, clip_library, snippet, tiny):
     config = dataclasses.replace(tiny, eval_episodes_steps=(1024,), later_eval_episodes=(7,))
     result = train_expert(snippet, tmp_path, config, progress=False)
     evaluations = json.loads(ExpertDir(Path(result.directory)).evaluations.read_text())
