@@ -303,15 +303,35 @@ FAST_3M_SCHEDULES: dict[str, Any] = {
 in one run" (3e-4 to 1e-4 at 600k steps, noise 0.3 to 0.2 at 2M, 3M steps)."""
 
 
+WIDE_3M_CHANGES: dict[str, Any] = {
+    "hidden_layers": (512, 512),
+    "learning_rates": (1.5e-4, 5e-5),
+    "steps_per_update_steps": (2_000_000,),
+    "later_steps_per_update": (16_384,),
+    "eval_episodes_steps": (2_000_000,),
+    "later_eval_episodes": (500,),
+}
+"""What ``--profile fast-3m-wide`` changes in ``fast-3m``: 2x512 networks at half its step sizes (a wider network
+at 3e-4 collapses), 16,384 steps per update and 500-episode evaluations from 2M (the README's "Wider networks at
+half the step size")."""
+
+
 def expert_profiles() -> dict[str, ExpertConfig]:
-    """Named starting points for expert training: ``seed`` (Table 1, B.1.2), ``fast`` and ``fast-3m``.
+    """Named starting points for expert training: ``seed`` (Table 1, B.1.2), ``fast``, ``fast-3m`` and ``fast-3m-wide``.
 
     ``fast`` is the seed's settings with :data:`FAST_PROFILE_CHANGES`; ``fast-3m`` is
-    ``fast`` with :data:`FAST_3M_SCHEDULES`. Flags given beside ``--profile`` change
-    any of them further (through :func:`with_changes`).
+    ``fast`` with :data:`FAST_3M_SCHEDULES`; ``fast-3m-wide`` is ``fast-3m`` with
+    :data:`WIDE_3M_CHANGES`. Flags given beside ``--profile`` change any of them further
+    (through :func:`with_changes`).
     """
     fast = ExpertConfig(**FAST_PROFILE_CHANGES)
-    return {"seed": ExpertConfig(), "fast": fast, "fast-3m": dataclasses.replace(fast, **FAST_3M_SCHEDULES)}
+    fast_3m = dataclasses.replace(fast, **FAST_3M_SCHEDULES)
+    return {
+        "seed": ExpertConfig(),
+        "fast": fast,
+        "fast-3m": fast_3m,
+        "fast-3m-wide": dataclasses.replace(fast_3m, **WIDE_3M_CHANGES),
+    }
 
 
 def with_changes(base: ExpertConfig, changes: dict[str, Any]) -> ExpertConfig:

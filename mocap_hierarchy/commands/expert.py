@@ -12,6 +12,7 @@ from distill.experts.config import (
     EVALUATIONS,
     FAST_3M_SCHEDULES,
     FAST_PROFILE_CHANGES,
+    WIDE_3M_CHANGES,
     BatchedExpertConfig,
     EvaluationConfig,
     ExpertConfig,
@@ -94,12 +95,14 @@ def _add_profile(parser: argparse.ArgumentParser) -> None:
         f"{k}={'x'.join(map(str, v)) if isinstance(v, tuple) else v}" for k, v in FAST_PROFILE_CHANGES.items()
     )
     schedules = ", ".join(f"{k}={v}" for k, v in FAST_3M_SCHEDULES.items())
+    wide = ", ".join(f"{k}={v}" for k, v in WIDE_3M_CHANGES.items())
     parser.add_argument(
         "--profile",
         choices=tuple(expert_profiles()),
         default="seed",
-        help=f"starting settings, changed further by the flags below: seed (the defaults shown), fast ({changes}) "
-        f"or fast-3m (fast with {schedules}; one --learning-rates value drops its step-size schedule)",
+        help=f"starting settings, changed further by the flags below: seed (the defaults shown), fast ({changes}), "
+        f"fast-3m (fast with {schedules}; one --learning-rates value drops its step-size schedule), "
+        f"or fast-3m-wide (fast-3m with {wide})",
     )
 
 

@@ -267,6 +267,28 @@ def test_the_fast_3m_profile_is_fast_with_both_schedules_and_a_lone_change_repla
     assert with_changes(fast, {"action_std": 0.2}) == dataclasses.replace(fast, action_std=0.2)
 
 
+def test_the_wide_profile_is_fast_3m_with_a_wider_network_at_half_the_step_sizes_and_larger_updates_late():
+    profiles = expert_profiles()
+    fast_3m, wide = profiles["fast-3m"], profiles["fast-3m-wide"]
+    wide.validate()
+    assert wide.hidden_layers == (512, 512)
+    assert wide.learning_rates == tuple(rate / 2 for rate in fast_3m.learning_rates)
+    assert wide.learning_rate_steps == fast_3m.learning_rate_steps
+    assert [wide.steps_per_update_at(s) for s in (1_999_999, 2_000_000)] == [4096, 16_384]
+    assert [wide.eval_episodes_at(s) for s in (1_999_999, 2_000_000)] == [fast_3m.eval_episodes, 500]
+    assert [wide.action_std_at(s) for s in (0, 2_000_000)] == [0.3, 0.2]
+    unchanged = dataclasses.replace(
+        wide,
+        hidden_layers=fast_3m.hidden_layers,
+        learning_rates=fast_3m.learning_rates,
+        steps_per_update_steps=(),
+        later_steps_per_update=(),
+        eval_episodes_steps=(),
+        later_eval_episodes=(),
+    )
+    assert unchanged == fast_3m
+
+
 def test_a_branch_continues_another_runs_checkpoint_with_its_own_settings(
     clip_library, tmp_path, monkeypatch, snippet, tiny
 ):
