@@ -303,7 +303,7 @@ FAST_3M_SCHEDULES: dict[str, Any] = {
 in one run" (3e-4 to 1e-4 at 600k steps, noise 0.3 to 0.2 at 2M, 3M steps)."""
 
 
-WIDE_3M_CHANGES: dict[str, Any] = {
+FAST_3M_WIDE_CHANGES: dict[str, Any] = {
     "hidden_layers": (512, 512),
     "learning_rates": (1.5e-4, 5e-5),
     "steps_per_update_steps": (2_000_000,),
@@ -321,7 +321,7 @@ def expert_profiles() -> dict[str, ExpertConfig]:
 
     ``fast`` is the seed's settings with :data:`FAST_PROFILE_CHANGES`; ``fast-3m`` is
     ``fast`` with :data:`FAST_3M_SCHEDULES`; ``fast-3m-wide`` is ``fast-3m`` with
-    :data:`WIDE_3M_CHANGES`. Flags given beside ``--profile`` change any of them further
+    :data:`FAST_3M_WIDE_CHANGES`. Flags given beside ``--profile`` change any of them further
     (through :func:`with_changes`).
     """
     fast = ExpertConfig(**FAST_PROFILE_CHANGES)
@@ -330,7 +330,7 @@ def expert_profiles() -> dict[str, ExpertConfig]:
         "seed": ExpertConfig(),
         "fast": fast,
         "fast-3m": fast_3m,
-        "fast-3m-wide": dataclasses.replace(fast_3m, **WIDE_3M_CHANGES),
+        "fast-3m-wide": dataclasses.replace(fast_3m, **FAST_3M_WIDE_CHANGES),
     }
 
 

@@ -11,8 +11,8 @@ from pathlib import Path
 from distill.experts.config import (
     EVALUATIONS,
     FAST_3M_SCHEDULES,
+    FAST_3M_WIDE_CHANGES,
     FAST_PROFILE_CHANGES,
-    WIDE_3M_CHANGES,
     BatchedExpertConfig,
     EvaluationConfig,
     ExpertConfig,
@@ -90,19 +90,20 @@ _SHARED_WITH_CPU = tuple(
 """Flags ``--engine warp`` reads from the CPU trainer's flag group (same names, same meaning)."""
 
 
+def _listed(changes: dict) -> str:
+    """A profile's changes as ``field=value`` pairs, a tuple's values separated by spaces as its flag takes them."""
+    return ", ".join(f"{k}={' '.join(map(str, v)) if isinstance(v, tuple) else v}" for k, v in changes.items())
+
+
 def _add_profile(parser: argparse.ArgumentParser) -> None:
-    changes = ", ".join(
-        f"{k}={'x'.join(map(str, v)) if isinstance(v, tuple) else v}" for k, v in FAST_PROFILE_CHANGES.items()
-    )
-    schedules = ", ".join(f"{k}={v}" for k, v in FAST_3M_SCHEDULES.items())
-    wide = ", ".join(f"{k}={v}" for k, v in WIDE_3M_CHANGES.items())
     parser.add_argument(
         "--profile",
         choices=tuple(expert_profiles()),
         default="seed",
-        help=f"starting settings, changed further by the flags below: seed (the defaults shown), fast ({changes}), "
-        f"fast-3m (fast with {schedules}; one --learning-rates value drops its step-size schedule), "
-        f"or fast-3m-wide (fast-3m with {wide})",
+        help="starting settings, changed further by the flags below: seed (the defaults shown), "
+        f"fast ({_listed(FAST_PROFILE_CHANGES)}), fast-3m (fast with {_listed(FAST_3M_SCHEDULES)}; one "
+        f"--learning-rates value drops its step-size schedule), or fast-3m-wide (fast-3m with "
+        f"{_listed(FAST_3M_WIDE_CHANGES)})",
     )
 
 
