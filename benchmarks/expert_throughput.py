@@ -68,7 +68,11 @@ def main() -> None:
     parser.add_argument("--hidden-layers", type=int, nargs="+", default=(256, 256))
     parser.add_argument("--steps-per-update", type=int, default=4096)
     parser.add_argument(
-        "--profiles", nargs="+", metavar="NAME", help="compare these profiles (ratios to the first) instead of layouts"
+        "--profiles",
+        nargs="+",
+        metavar="NAME",
+        help="compare these profiles (ratios to the first) instead of layouts; --hidden-layers and --steps-per-update "
+        "then do not apply",
     )
     args = parser.parse_args()
     if args.profiles:
