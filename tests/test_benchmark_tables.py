@@ -8,6 +8,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from distill.experts.config import expert_profiles
+
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
@@ -82,3 +84,19 @@ def test_transfer_table_keeps_only_the_updates_of_the_stretch_every_seed_reached
     np.testing.assert_array_equal(returns, [[2.0, 3.0], [6.0, 7.0]])
     with pytest.raises(SystemExit, match="no update between"):
         table.seed_curves(runs, until=250, since=210)
+
+
+def test_the_throughput_benchmark_measures_profiles_as_trained_with_evaluations_and_checkpoints_off():
+    throughput = load_script("expert_throughput")
+    configs = throughput.profile_configs(["fast-3m", "fast-3m-wide"])
+    assert list(configs) == ["fast-3m", "fast-3m-wide"]
+    for name, config in configs.items():
+        profile = expert_profiles()[name]
+        assert config.hidden_layers == profile.hidden_layers
+        assert config.learning_rates == profile.learning_rates
+        assert (config.n_envs, config.subprocess_envs) == (profile.n_envs, profile.subprocess_envs)
+        assert config.eval_every > 10**9 and config.checkpoint_every > 10**9
+        assert not config.eval_at_start and config.final_eval_episodes == 0
+    assert configs["fast-3m-wide"].hidden_layers == (512, 512)
+    with pytest.raises(SystemExit, match="unknown profile"):
+        throughput.profile_configs(["fast-3m", "fastest"])
