@@ -182,7 +182,7 @@ def train_transfer(
         progress: Show a progress bar.
         task_name: Label recorded for a factory (default: its ``__name__``).
         latent_prior: A latent prior file of the decoder, or the shipped decoder's name
-            (``synthetic-v2``): the policy's actions become residuals on the prior's mean
+            (``synthetic-v3``): the policy's actions become residuals on the prior's mean
             (:mod:`hierarchy.latent_prior`). None: actions are the latents themselves.
 
     Raises:

@@ -73,10 +73,10 @@ def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys)
     from hierarchy.task_policy import load_task_policy
 
     # velocity control runs on the shipped decoder, around its shipped prior, commanded straight ahead
-    assert summary["transfer_decoder"]["name"] == "synthetic-v2"
-    assert summary["transfer_prior"]["name"] == "shipped with synthetic-v2"
+    assert summary["transfer_decoder"]["name"] == "synthetic-v3"
+    assert summary["transfer_prior"]["name"] == "shipped with synthetic-v3"
     spec = load_task_policy(summary["transfer"]["decoder"]["policy"]).spec
-    assert spec.decoder["name"] == "synthetic-v2" and spec.decoder["latent_prior"]["name"] == "synthetic-v2"
+    assert spec.decoder["name"] == "synthetic-v3" and spec.decoder["latent_prior"]["name"] == "synthetic-v3"
     assert spec.task_overrides == {"max_steps": 500, "max_speed": 1.5, "heading_spread": 0.0}
     speed = summary["transfer"]["decoder"]["speed"]
     assert speed["episodes"] == 10 and 0 < speed["still_reward_per_step"] < 1

@@ -50,8 +50,10 @@ class FakeStages:
         shipped.mkdir()
         (shipped / "synthetic-v1.safetensors").write_text("a shipped decoder")
         (shipped / "synthetic-v2.safetensors").write_text("another shipped decoder")
+        (shipped / "synthetic-v3.safetensors").write_text("the newest shipped decoder")
         (shipped / "priors").mkdir()
         (shipped / "priors" / "synthetic-v2.safetensors").write_text("the prior shipped with synthetic-v2")
+        (shipped / "priors" / "synthetic-v3.safetensors").write_text("the prior shipped with synthetic-v3")
         monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", shipped)
         monkeypatch.setattr(pipeline, "ensure_synthetic_library", lambda progress: tmp_path / "clips.h5")
         monkeypatch.setattr(pipeline, "list_clips", lambda library: {"SYN_stand": 181, "SYN_wave": 196})
@@ -184,15 +186,15 @@ def test_changed_settings_rerun_only_the_stages_they_feed(fakes, tmp_path):
 def test_velocity_control_runs_around_the_shipped_decoders_prior_and_the_summary_says_so(fakes, tmp_path, capsys):
     summary = run_quickstart(tiny(tmp_path))
     shipped = tmp_path / "pretrained"
-    assert fakes.transfer_decoders == [str(shipped / "synthetic-v2.safetensors")]
-    assert fakes.transfer_priors == [str(shipped / "priors" / "synthetic-v2.safetensors")]
-    assert summary["transfer_decoder"]["name"] == "synthetic-v2"
-    assert summary["transfer_prior"]["name"] == "shipped with synthetic-v2"
-    assert summary["verdicts"]["velocity_control"]["decoder"] == str(shipped / "synthetic-v2.safetensors")
+    assert fakes.transfer_decoders == [str(shipped / "synthetic-v3.safetensors")]
+    assert fakes.transfer_priors == [str(shipped / "priors" / "synthetic-v3.safetensors")]
+    assert summary["transfer_decoder"]["name"] == "synthetic-v3"
+    assert summary["transfer_prior"]["name"] == "shipped with synthetic-v3"
+    assert summary["verdicts"]["velocity_control"]["decoder"] == str(shipped / "synthetic-v3.safetensors")
     out = capsys.readouterr().out
     assert (
-        f"velocity control ran on the decoder synthetic-v2 ({shipped / 'synthetic-v2.safetensors'}), acting around "
-        f"the latent prior shipped with synthetic-v2 ({shipped / 'priors' / 'synthetic-v2.safetensors'})" in out
+        f"velocity control ran on the decoder synthetic-v3 ({shipped / 'synthetic-v3.safetensors'}), acting around "
+        f"the latent prior shipped with synthetic-v3 ({shipped / 'priors' / 'synthetic-v3.safetensors'})" in out
     )
     # A longer distillation does not change the shipped decoder: velocity control is read, not rerun.
     summary = run_quickstart(tiny(tmp_path, distill_steps=1200))
@@ -208,7 +210,7 @@ def test_without_a_shipped_prior_or_with_none_the_actions_are_latents(fakes, tmp
     assert summary["transfer_prior"] is None and fakes.transfer_priors == [None]
     summary = run_quickstart(tiny(tmp_path, transfer_prior="none"))
     assert summary["transfer_prior"] is None and fakes.transfer_priors == [None, None]
-    assert fakes.transfer_decoders[-1].endswith("synthetic-v2.safetensors")
+    assert fakes.transfer_decoders[-1].endswith("synthetic-v3.safetensors")
 
 
 def test_a_prior_file_is_taken_and_a_missing_one_says_what_would_work(fakes, tmp_path):
@@ -228,9 +230,8 @@ def test_own_decoder_runs_velocity_control_on_the_distilled_one(fakes, tmp_path)
 
 
 def test_an_unknown_transfer_decoder_says_what_would_work(fakes, tmp_path):
-    with pytest.raises(
-        FileNotFoundError, match=r"shipped decoders: synthetic-v1, synthetic-v2\); use --transfer-decoder own"
-    ):
+    names = r"shipped decoders: synthetic-v1, synthetic-v2, synthetic-v3\)"
+    with pytest.raises(FileNotFoundError, match=names + r"; use --transfer-decoder own"):
         run_quickstart(tiny(tmp_path, transfer_decoder="synthetic-v9"))
 
 

@@ -54,7 +54,7 @@ def _build_train(parser: argparse.ArgumentParser) -> None:
         "--latent-prior",
         default=None,
         help="act around a latent prior of the decoder: a prior file (`decoder fit-prior`) or a shipped decoder's "
-        "name (synthetic-v2); the policy's actions become residuals on the prior's mean",
+        "name (synthetic-v3); the policy's actions become residuals on the prior's mean",
     )
     parser.add_argument("--out", type=Path, required=True, help="output folder (policy.safetensors lands here)")
     parser.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")

@@ -16,7 +16,7 @@ Stages:
    the speeds the synthetic clips show) trained with PPO on top of a decoder and,
    as the baseline, on raw joint targets, each evaluated deterministically for
    return and commanded against actual speed. The decoder is the shipped
-   ``synthetic-v2`` by default, acting around the latent prior shipped with it
+   ``synthetic-v3`` by default, acting around the latent prior shipped with it
    (``transfer_decoder``, ``transfer_prior``; ``own`` takes the one stage 5
    distilled), so the high-level policy rises on skills trained far longer than
    the quickstart can; the summary names both;

@@ -37,10 +37,10 @@ class QuickstartConfig:
         distill_steps: Optimiser steps of the distillation.
         distill_hidden: Width of the encoder's and decoder's hidden layers (the seed: 1024).
         transfer_decoder: The decoder velocity control runs on: a shipped decoder's name
-            (``synthetic-v2`` or ``synthetic-v1``, distilled from experts trained far longer
+            (``synthetic-v3``, ``synthetic-v2`` or ``synthetic-v1``, distilled from experts trained far longer
             than the quickstart can), a decoder file, or ``own`` for the one this quickstart distils.
         transfer_prior: What the high-level actions are relative to: ``auto``, the latent prior
-            shipped with ``transfer_decoder`` (``synthetic-v2`` ships one: actions are residuals
+            shipped with ``transfer_decoder`` (``synthetic-v3`` and ``synthetic-v2`` ship one: actions are residuals
             on it) or none if it ships none; ``none``, the latents themselves; or a prior file.
         velocity_max_speed: Commanded speeds are uniform below this, m/s (the seed's 4.5 asks
             for running, which the synthetic clips never show; they move at 0-1.4 m/s).
@@ -61,7 +61,7 @@ class QuickstartConfig:
     rollouts_per_snippet: int = 5
     distill_steps: int = 600
     distill_hidden: int = 256
-    transfer_decoder: str = "synthetic-v2"
+    transfer_decoder: str = "synthetic-v3"
     transfer_prior: str = SHIPPED_PRIOR
     velocity_max_speed: float = 1.5
     velocity_heading_spread: float = 0.0
