@@ -39,8 +39,9 @@ LAYOUTS: dict[str, dict] = {
 }
 
 UNMEASURED = {"eval_every": 10**12, "eval_at_start": False, "eval_episodes": 10, "checkpoint_every": 10**12}
-"""What every measured run turns off: periodic evaluations and checkpoints (one 10-episode evaluation at the
-end remains, and the short-minus-long difference cancels it with the start-up)."""
+"""What every measured run turns off: periodic evaluations and checkpoints. The layouts keep one 10-episode
+evaluation at the end, which the short-minus-long difference cancels with the start-up; :func:`profile_configs`
+also turns that one off."""
 
 
 def profile_configs(names: list[str]) -> dict[str, ExpertConfig]:
