@@ -197,12 +197,13 @@ def train_transfer(
     decoder = resolve_decoder(decoder) if decoder is not None else None
     frozen = load_decoder(decoder) if decoder is not None else None
     decoder_sha = file_sha256(decoder) if decoder is not None else None
+    behaviour_sha = frozen.behaviour_sha256() if frozen is not None else None
     prior, prior_facts = _prior_for(latent_prior, frozen)
     checkpoint = out / CHECKPOINT_DIR
     settings = _resume_settings(source, decoder_sha, config)
     if prior_facts is not None:  # absent otherwise, so runs from before priors existed still resume
         settings["latent_prior"] = prior_facts["sha256"]
-    _check_resume_settings(checkpoint, settings)
+    _check_resume_settings(checkpoint, settings, behaviour_sha)
 
     venv = _vec_env(source, frozen, config, prior)
     model = _resume_or_build(checkpoint, venv, config, with_decoder=frozen is not None, out=out)
@@ -219,7 +220,6 @@ def train_transfer(
                 venv.close()
                 raise stop.stop(f"transfer: stopped at step {model.num_timesteps}", "run the same command again")
 
-    behaviour_sha = frozen.behaviour_sha256() if frozen is not None else None
     path = _save_policy(out, model, source, decoder, decoder_sha, config, prior_facts, behaviour_sha)
     _save_resume_files(model, checkpoint)
     venv.close()
@@ -339,13 +339,47 @@ def _save_policy(
     return path
 
 
-def _check_resume_settings(checkpoint: Path, settings: dict[str, Any]) -> None:
-    """Refuses to resume a checkpoint of another task, decoder or PPO setting; records the settings of a new one."""
+def _check_resume_settings(checkpoint: Path, settings: dict[str, Any], behaviour_sha: str | None = None) -> None:
+    """Refuses to resume a checkpoint of another task, decoder or PPO setting; records the settings of a new one.
+
+    A decoder file whose SHA-256 changed but whose weights did not (the same
+    :meth:`LatentDecoder.behaviour_sha256`, e.g. a shipped decoder re-packaged with a new model
+    card) counts as the same decoder, as it does for evaluation.
+    """
     record = checkpoint / "settings.json"
     if record.is_file():
-        check_same_settings(json.loads(record.read_text()), settings, str(checkpoint), "task, decoder or PPO settings")
+        saved = json.loads(record.read_text())
+        requested = _as_saved_decoder_if_same_weights(saved, settings, behaviour_sha, checkpoint)
+        check_same_settings(saved, requested, str(checkpoint), "task, decoder or PPO settings")
     elif not (checkpoint / "model.zip").is_file():
-        write_json(record, settings_record(settings))
+        # Beside the compared settings, so runs recorded before it existed still resume.
+        write_json(record, {**settings_record(settings), "decoder_behaviour_sha256": behaviour_sha})
+
+
+def _as_saved_decoder_if_same_weights(
+    saved: dict[str, Any], settings: dict[str, Any], behaviour_sha: str | None, checkpoint: Path
+) -> dict[str, Any]:
+    """``settings`` with the saved decoder SHA-256 in place of this file's when both have the same weights.
+
+    The saved file's behaviour hash is the one its settings record holds, or, for runs recorded
+    before that, the one the run's own ``transfer.json`` wrote beside the same file SHA-256 (then
+    copied into the record, since the run's next ``transfer.json`` names the new file).
+    """
+    saved_sha = saved.get("settings", {}).get("decoder")
+    if behaviour_sha is None or saved_sha is None or saved_sha == settings["decoder"]:
+        return settings
+    known = saved.get("decoder_behaviour_sha256")
+    summary = checkpoint.parent / "transfer.json"
+    if known is None and summary.is_file():
+        facts = json.loads(summary.read_text()).get("decoder") or {}
+        known = facts.get("behaviour_sha256") if facts.get("sha256") == saved_sha else None
+    if known != behaviour_sha:
+        return settings
+    if saved.get("decoder_behaviour_sha256") is None:
+        write_json(checkpoint / "settings.json", {**saved, "decoder_behaviour_sha256": known})
+    print(f"resuming with decoder file SHA-256 {settings['decoder'][:12]}... in place of {saved_sha[:12]}...: "
+          "the same weights (behaviour SHA-256) under another model card")  # fmt: skip
+    return {**settings, "decoder": saved_sha}
 
 
 def _save_resume_files(model, folder: Path) -> None:

@@ -14,6 +14,7 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 import tasks
+from foundation.fingerprints import file_sha256
 from hierarchy import LatentActionVecEnv
 from hierarchy.task_policy import load_task_policy, task_policy_from_sb3
 from hierarchy.transfer import TransferConfig, evaluate_transfer, track_speed, train_transfer
@@ -157,6 +158,42 @@ def test_resume_refuses_another_decoder_or_setting(tmp_path):
     with pytest.raises(ValueError, match=r"config\.learning_rate: saved 5e-05, requested 0\.001"):
         train_transfer("velocity_control", out, decoder_file, dataclasses.replace(TINY, learning_rate=1e-3),
                        {"max_steps": 30}, progress=False)  # fmt: skip
+
+
+def recarded_copy(tmp_path, name: str):
+    """The same decoder weights as ``small_decoder()`` under another model card, in a new file."""
+    recarded = small_decoder()
+    recarded.spec = dataclasses.replace(recarded.spec, provenance={"model_card": {"summary": name}})
+    return recarded.save(tmp_path / f"{name}.safetensors")
+
+
+@pytest.mark.parametrize("recorded_before_behaviour_hashes", [False, True])
+def test_resume_accepts_the_same_weights_under_another_card(tmp_path, capsys, recorded_before_behaviour_hashes):
+    decoder_file = small_decoder().save(tmp_path / "decoder.safetensors")
+    out = tmp_path / "run"
+    train_transfer("velocity_control", out, decoder_file, TINY, {"max_steps": 30}, progress=False)
+    record_file = out / "checkpoint" / "settings.json"
+    if recorded_before_behaviour_hashes:  # as runs recorded before the record held it: transfer.json tells
+        record = json.loads(record_file.read_text())
+        del record["decoder_behaviour_sha256"]
+        record_file.write_text(json.dumps(record))
+    capsys.readouterr()
+    for steps, card in [(192, "re-carded"), (256, "re-carded again")]:  # twice: the second reads the record
+        recarded = recarded_copy(tmp_path, card)
+        longer = dataclasses.replace(TINY, total_steps=steps)
+        train_transfer("velocity_control", out, recarded, longer, {"max_steps": 30}, progress=False)
+        printed = capsys.readouterr().out
+        assert "the same weights (behaviour SHA-256) under another model card" in printed
+        assert f"resuming {out} from step {steps - 64}" in printed
+    policy = load_task_policy(out / "policy.safetensors")
+    assert policy.spec.provenance["steps"] == 256 and policy.spec.decoder["sha256"] != file_sha256(decoder_file)
+    assert json.loads(record_file.read_text())["settings"]["decoder"] == file_sha256(decoder_file)
+    changed = small_decoder()
+    with torch.no_grad():
+        changed.net[0].weight[0, 0] += 1e-3
+    with pytest.raises(ValueError, match="task, decoder or PPO settings"):
+        train_transfer("velocity_control", out, changed.save(tmp_path / "changed.safetensors"),
+                       dataclasses.replace(TINY, total_steps=320), {"max_steps": 30}, progress=False)  # fmt: skip
 
 
 def short_velocity_control():
