@@ -50,6 +50,7 @@ from tasks.downstream.speed_tracking import SpeedEpisode, run_episode
 
 POLICY_FILE = "policy.safetensors"
 CHECKPOINT_DIR = "checkpoint"
+TASK_RETURNS_FILE = "task_returns.json"  # beside SB3's resume files: the window the log averages
 
 
 @dataclass(frozen=True)
@@ -209,11 +210,12 @@ def train_transfer(
     model = _resume_or_build(checkpoint, venv, config, with_decoder=frozen is not None, out=out)
     model.set_logger(resumable_logger(out, ["csv", "tensorboard"], resumed=model.num_timesteps > 0))
 
+    task_returns = TaskReturns.resumed(checkpoint / TASK_RETURNS_FILE) if model.num_timesteps > 0 else TaskReturns()
     remaining = config.total_steps - model.num_timesteps
     if remaining > 0:
         with stop_requests() as stop:
             callback = _ProgressAndCheckpoint(
-                config.total_steps, config.checkpoint_every, checkpoint, progress, config.epochs, stop
+                config.total_steps, config.checkpoint_every, checkpoint, progress, config.epochs, stop, task_returns
             )
             model.learn(remaining, callback=callback, reset_num_timesteps=False)
             if stop.requested:
@@ -221,7 +223,7 @@ def train_transfer(
                 raise stop.stop(f"transfer: stopped at step {model.num_timesteps}", "run the same command again")
 
     path = _save_policy(out, model, source, decoder, decoder_sha, config, prior_facts, behaviour_sha)
-    _save_resume_files(model, checkpoint)
+    _save_resume_files(model, checkpoint, task_returns)
     venv.close()
     return path
 
@@ -382,8 +384,9 @@ def _as_saved_decoder_if_same_weights(
     return {**settings, "decoder": saved_sha}
 
 
-def _save_resume_files(model, folder: Path) -> None:
-    """SB3's model and normaliser (the run's own resume files)."""
+def _save_resume_files(model, folder: Path, task_returns: TaskReturns) -> None:
+    """SB3's model and normaliser (the run's own resume files), and the task returns the log averages."""
+    task_returns.save(folder / TASK_RETURNS_FILE)
     save_sb3(model, model.get_vec_normalize_env(), folder / "model.zip", folder / "vecnormalize.pkl")
 
 
@@ -407,6 +410,22 @@ class TaskReturns:
         """Mean over the kept episodes; None before the first ends."""
         return float(np.mean(self.recent)) if self.recent else None
 
+    def save(self, path: Path) -> None:
+        """Writes the kept returns (JSON, atomically), so a resumed run logs the same window."""
+        write_json(path, {"window": self.recent.maxlen, "returns": list(self.recent)})
+
+    @classmethod
+    def resumed(cls, path: Path, window: int = 100) -> TaskReturns:
+        """The returns a checkpoint kept; empty for checkpoints written before they were kept.
+
+        Without them the first updates after a resume would average only the episodes that
+        ended since, which are the short ones, and the logged curve would dip.
+        """
+        kept = cls(window)
+        if path.is_file():
+            kept.recent.extend(float(x) for x in json.loads(path.read_text())["returns"])
+        return kept
+
 
 class _ProgressAndCheckpoint(BaseCallback):
     """Progress bar, resume files and the task's own return for one training run.
@@ -415,11 +434,19 @@ class _ProgressAndCheckpoint(BaseCallback):
     every ``every`` steps, and the task's return is logged beside SB3's (:data:`TASK_RETURN_KEY`).
     """
 
-    def __init__(self, total: int, every: int, folder: Path, progress: bool, epochs: int, stop: StopFlag) -> None:
+    def __init__(
+        self,
+        total: int,
+        every: int,
+        folder: Path,
+        progress: bool,
+        epochs: int,
+        stop: StopFlag,
+        task_returns: TaskReturns,
+    ) -> None:
         super().__init__()
         self.total, self.every, self.folder, self.progress, self.epochs = total, every, folder, progress, epochs
-        self.stop = stop
-        self.task_returns = TaskReturns()
+        self.stop, self.task_returns = stop, task_returns
 
     def _on_training_start(self) -> None:
         steps = self.model.num_timesteps
@@ -434,10 +461,10 @@ class _ProgressAndCheckpoint(BaseCallback):
         self.bar.update(self.model.num_timesteps - self.bar.n)
         self.task_returns.add(self.locals.get("infos", ()), self.locals.get("dones", ()))
         if self.model.num_timesteps >= self.next_save:
-            _save_resume_files(self.model, self.folder)
+            _save_resume_files(self.model, self.folder, self.task_returns)
             self.next_save += self.every
         if self.stop.requested:  # Ctrl-C or SIGTERM: save where we are and leave PPO's loop
-            _save_resume_files(self.model, self.folder)
+            _save_resume_files(self.model, self.folder, self.task_returns)
             return False
         return True
 

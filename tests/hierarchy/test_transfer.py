@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import csv
 import dataclasses
 import json
 import math
@@ -222,6 +223,23 @@ def test_transfer_says_when_it_updates_and_when_it_evaluates(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "PPO update: up to 2 epochs over 64 steps" in err  # the bar at 100% says what it waits for
     assert "evaluating on velocity_control (deterministic)" in err and "2/2" in err
+
+
+def test_a_resumed_run_keeps_averaging_the_task_returns_it_had(tmp_path):
+    out = tmp_path / "run"
+    train_transfer("velocity_control", out, None, TINY, {"max_steps": 10}, progress=False)
+    kept_file = out / "checkpoint" / "task_returns.json"
+    before = json.loads(kept_file.read_text())["returns"]
+    assert len(before) >= 10  # 128 steps of episodes of at most 10
+    train_transfer("velocity_control", out, None, dataclasses.replace(TINY, total_steps=192), {"max_steps": 10},
+                   progress=False)  # fmt: skip
+    after = json.loads(kept_file.read_text())["returns"]
+    assert after[: len(before)] == before and len(after) > len(before)  # the window went on, not over
+    with open(out / "progress.csv") as f:
+        resumed_update = next(r for r in csv.DictReader(f) if r["time/total_timesteps"] == "192")
+    logged = float(resumed_update["rollout/task_return_mean"])  # the first update after the resume
+    assert logged == pytest.approx(np.mean(after[-100:]))
+    assert logged != pytest.approx(np.mean(after[len(before) :]))  # not the new episodes alone
 
 
 def test_task_returns_keep_ended_episodes_of_tasks_that_report_them():
