@@ -62,7 +62,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("policies", nargs="+", type=Path, help="policy.safetensors files or transfer folders")
     parser.add_argument("--labels", nargs="+", default=None, help="one label per policy")
-    parser.add_argument("--steps", type=int, default=1000, help="episode limit (30 steps per second)")
+    parser.add_argument("--steps", type=int, default=1000, help="episode limit in control steps of 0.03 s (1000: 30 s)")
     parser.add_argument("--episodes", type=int, default=50, help="episodes per policy (seeds --seed, --seed + 1, ...)")
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--out", type=Path, default=Path("speed_tracking.png"))
