@@ -346,42 +346,47 @@ def _check_resume_settings(checkpoint: Path, settings: dict[str, Any], behaviour
 
     A decoder file whose SHA-256 changed but whose weights did not (the same
     :meth:`LatentDecoder.behaviour_sha256`, e.g. a shipped decoder re-packaged with a new model
-    card) counts as the same decoder, as it does for evaluation.
+    card) counts as the same decoder, as it does for evaluation (:func:`_is_recorded_decoder`).
     """
     record = checkpoint / "settings.json"
     if record.is_file():
         saved = json.loads(record.read_text())
-        requested = _as_saved_decoder_if_same_weights(saved, settings, behaviour_sha, checkpoint)
-        check_same_settings(saved, requested, str(checkpoint), "task, decoder or PPO settings")
+        saved_sha = saved.get("settings", {}).get("decoder")
+        saved_behaviour = _saved_decoder_behaviour(saved, checkpoint.parent)
+        if saved_sha not in (None, settings["decoder"]) and _is_recorded_decoder(
+            settings["decoder"], behaviour_sha, saved_sha, saved_behaviour
+        ):
+            print(f"resuming with decoder file SHA-256 {settings['decoder'][:12]}... in place of {saved_sha[:12]}...: "
+                  "the same weights (behaviour SHA-256) under another model card")  # fmt: skip
+            settings = {**settings, "decoder": saved_sha}
+            if "decoder_behaviour_sha256" not in saved:  # the next transfer.json names the new file
+                write_json(record, {**saved, "decoder_behaviour_sha256": saved_behaviour})
+        check_same_settings(saved, settings, str(checkpoint), "task, decoder or PPO settings")
     elif not (checkpoint / "model.zip").is_file():
         # Beside the compared settings, so runs recorded before it existed still resume.
         write_json(record, {**settings_record(settings), "decoder_behaviour_sha256": behaviour_sha})
 
 
-def _as_saved_decoder_if_same_weights(
-    saved: dict[str, Any], settings: dict[str, Any], behaviour_sha: str | None, checkpoint: Path
-) -> dict[str, Any]:
-    """``settings`` with the saved decoder SHA-256 in place of this file's when both have the same weights.
+def _saved_decoder_behaviour(saved: dict[str, Any], out: Path) -> str | None:
+    """The behaviour SHA-256 of the decoder a settings record names.
 
-    The saved file's behaviour hash is the one its settings record holds, or, for runs recorded
-    before that, the one the run's own ``transfer.json`` wrote beside the same file SHA-256 (then
-    copied into the record, since the run's next ``transfer.json`` names the new file).
+    The record holds it; runs recorded before it did have it in their own ``transfer.json``,
+    beside the same file SHA-256.
     """
-    saved_sha = saved.get("settings", {}).get("decoder")
-    if behaviour_sha is None or saved_sha is None or saved_sha == settings["decoder"]:
-        return settings
-    known = saved.get("decoder_behaviour_sha256")
-    summary = checkpoint.parent / "transfer.json"
-    if known is None and summary.is_file():
-        facts = json.loads(summary.read_text()).get("decoder") or {}
-        known = facts.get("behaviour_sha256") if facts.get("sha256") == saved_sha else None
-    if known != behaviour_sha:
-        return settings
-    if saved.get("decoder_behaviour_sha256") is None:
-        write_json(checkpoint / "settings.json", {**saved, "decoder_behaviour_sha256": known})
-    print(f"resuming with decoder file SHA-256 {settings['decoder'][:12]}... in place of {saved_sha[:12]}...: "
-          "the same weights (behaviour SHA-256) under another model card")  # fmt: skip
-    return {**settings, "decoder": saved_sha}
+    if "decoder_behaviour_sha256" in saved:
+        return saved["decoder_behaviour_sha256"]
+    summary = out / "transfer.json"
+    if not summary.is_file():
+        return None
+    facts = json.loads(summary.read_text()).get("decoder") or {}
+    return facts.get("behaviour_sha256") if facts.get("sha256") == saved.get("settings", {}).get("decoder") else None
+
+
+def _is_recorded_decoder(
+    file_sha: str | None, behaviour_sha: str | None, recorded_sha: str | None, recorded_behaviour: str | None
+) -> bool:
+    """Whether a decoder file is the one a run recorded: the same bytes, or the same weights under another card."""
+    return file_sha == recorded_sha or (behaviour_sha is not None and behaviour_sha == recorded_behaviour)
 
 
 def _save_resume_files(model, folder: Path, task_returns: TaskReturns) -> None:
@@ -411,20 +416,22 @@ class TaskReturns:
         return float(np.mean(self.recent)) if self.recent else None
 
     def save(self, path: Path) -> None:
-        """Writes the kept returns (JSON, atomically), so a resumed run logs the same window."""
+        """Writes the window and its returns (JSON, atomically), so a resumed run logs the same window."""
         write_json(path, {"window": self.recent.maxlen, "returns": list(self.recent)})
 
     @classmethod
-    def resumed(cls, path: Path, window: int = 100) -> TaskReturns:
-        """The returns a checkpoint kept; empty for checkpoints written before they were kept.
+    def resumed(cls, path: Path) -> TaskReturns:
+        """The window a checkpoint kept; a new, empty one for checkpoints written before they were kept.
 
-        Without them the first updates after a resume would average only the episodes that
+        Without it the first updates after a resume would average only the episodes that
         ended since, which are the short ones, and the logged curve would dip.
         """
-        kept = cls(window)
-        if path.is_file():
-            kept.recent.extend(float(x) for x in json.loads(path.read_text())["returns"])
-        return kept
+        if not path.is_file():
+            return cls()
+        kept = json.loads(path.read_text())
+        returns = cls(kept["window"])
+        returns.recent.extend(float(x) for x in kept["returns"])
+        return returns
 
 
 class _ProgressAndCheckpoint(BaseCallback):
@@ -501,7 +508,9 @@ def load_policy_and_decoder(
     if not path.is_file():
         raise FileNotFoundError(f"the policy drives decoder {path}, which does not exist; pass --decoder FILE")
     decoder = load_decoder(path)
-    if file_sha256(path) != facts["sha256"] and decoder.behaviour_sha256() != facts.get("behaviour_sha256"):
+    if not _is_recorded_decoder(
+        file_sha256(path), decoder.behaviour_sha256(), facts["sha256"], facts.get("behaviour_sha256")
+    ):
         raise ValueError(f"{path} is not the decoder {policy_path} was trained with (SHA-256 differs)")
     return policy, decoder
 
