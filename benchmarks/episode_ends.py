@@ -1,7 +1,7 @@
 """Why do an expert's episodes end early? Falls against drift, measured at each episode's last step.
 
 Rolls out each expert (and, with ``--playback``, the open-loop playback of the
-reference) with the seed's protocol: random starts excluding the last 30 frames,
+reference) with the paper's protocol: random starts excluding the last 30 frames,
 the mean action plus noise 0.1 (``--action-noise``). At the step an episode ends it
 records the root's height against the reference's, how far the root has drifted
 from the reference's on the floor (there and 15 steps earlier), and the two halves of the termination error

@@ -262,7 +262,7 @@ def main() -> None:
     parser.add_argument("--eval-every", type=int, default=25_000)
     parser.add_argument("--eval-episodes", type=int, default=50)
     parser.add_argument(
-        "--profile", choices=tuple(expert_profiles()), default="seed", help="starting settings (--base changes them)"
+        "--profile", choices=tuple(expert_profiles()), default="paper", help="starting settings (--base changes them)"
     )
     parser.add_argument("--base", nargs="*", default=[], metavar="FIELD=VALUE", help="settings of every variant")
     parser.add_argument(

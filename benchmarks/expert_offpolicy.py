@@ -1,8 +1,8 @@
 """Does an off-policy learner (SAC) beat ``--profile fast``'s PPO on samples? One snippet expert.
 
 Trains stable-baselines3's SAC on the same task the fast profile's PPO trains on (residual
-actions, reference observations, random starts, the seed's termination threshold) and
-evaluates it with the seed's protocol (random starts excluding the last 30 frames, the
+actions, reference observations, random starts, the paper's termination threshold) and
+evaluates it with the paper's protocol (random starts excluding the last 30 frames, the
 mean action plus noise 0.1, threshold 0.3) every ``--eval-every`` steps, as
 ``benchmarks/expert_learning.py`` evaluates PPO. Observations are normalised with running
 statistics (SB3's ``VecNormalize``, rewards left as they are: the CoMic reward lies in

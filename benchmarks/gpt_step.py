@@ -1,6 +1,6 @@
 """What the key/value cache buys: per-step action latency of the motion GPT with and without it.
 
-One GPT of the seed's size (Table 4: 8 layers, 8 heads, embedding 768, block
+One GPT of the paper's size (Table 4: 8 layers, 8 heads, embedding 768, block
 32; 206 observation values; ~57M parameters, random weights) rolls out a
 stream of states for ``--rollouts`` environments at once. Per step, three
 ways of getting the actions are timed in the same run, on the same states:

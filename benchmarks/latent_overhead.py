@@ -2,7 +2,7 @@
 
 Both arms step the same task in a stable-baselines3 ``DummyVecEnv`` of 16
 environments in one process; the latent arm adds :class:`hierarchy.LatentActionVecEnv`
-with a decoder of the seed's size (205 observation values + 60 latent -> 3 x
+with a decoder of the paper's size (205 observation values + 60 latent -> 3 x
 1024 -> 56), decoding all 16 environments in one batched call per step.
 To compare like with like, the plain arm replays the joint targets the latent
 arm applied, from the same seeds: both arms simulate the identical trajectory,
@@ -31,7 +31,7 @@ from tasks.observables import DECODER, PROPRIOCEPTION
 
 def seed_sized_decoder() -> LatentDecoder:
     torch.manual_seed(0)
-    spec = DecoderSpec({k: PROPRIOCEPTION[k] for k in DECODER})  # seed defaults: latent 60, 3 x 1024
+    spec = DecoderSpec({k: PROPRIOCEPTION[k] for k in DECODER})  # the paper's defaults: latent 60, 3 x 1024
     return LatentDecoder(spec, np.zeros(spec.observation_size), np.ones(spec.observation_size))
 
 

@@ -1,7 +1,7 @@
 """Where does an expert lose its reward? The CoMic reward's terms, averaged over evaluation episodes.
 
 Rolls out each expert (and, with ``--playback``, the open-loop playback of the
-reference, a zero residual) with the seed's protocol: random starts excluding the
+reference, a zero residual) with the paper's protocol: random starts excluding the
 last 30 frames, the mean action plus noise 0.1 (``--action-noise``). Prints the normalised episode
 length, the mean tracking error and each reward term's mean per step beside its
 maximum (the term's weight times 0.5; the termination term's maximum is 0.5).

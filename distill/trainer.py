@@ -17,7 +17,7 @@ with weight decay, a model may also offer ``optimizer_groups(weight_decay)``
 * **Devices**: CPU, or CUDA when present (``device="auto"``).
 * **Many GPUs / nodes**: started with ``torchrun``, every process trains a
   replica with torch DDP on ``batch_size / world_size`` windows (the global
-  batch stays the seed's); rank 0 alone logs and writes files.
+  batch stays the paper's); rank 0 alone logs and writes files.
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class TrainerConfig:
-    """Settings of the training loop (defaults: the seed's Table 2).
+    """Settings of the training loop (defaults: the paper's Table 2).
 
     Attributes:
         steps: Optimiser steps in total.

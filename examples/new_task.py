@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> float:
     parser.add_argument("--hidden", type=int, default=256, help="width of the policy's three hidden layers")
     args = parser.parse_args(argv)
 
-    # The seed's transfer settings (Table 3) scaled to a few minutes, but each latent held for 5 steps and a
+    # The paper's transfer settings (Table 3) scaled to a few minutes, but each latent held for 5 steps and a
     # narrower initial noise: with one step per latent and std 2.5 this budget learns nothing. The decoder is frozen.
     config = TransferConfig(
         total_steps=args.steps,

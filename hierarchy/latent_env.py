@@ -92,8 +92,8 @@ class LatentActionEnv(gym.Wrapper):
     Args:
         env: A walker task whose observations contain the decoder's keys.
         decoder: The frozen decoder.
-        max_latent: Per-element bound of ``z`` (the seed's 3).
-        steps_per_latent: Low-level steps per high-level action (the seed's 1).
+        max_latent: Per-element bound of ``z`` (the paper's 3).
+        steps_per_latent: Low-level steps per high-level action (the paper's 1).
         prior: A latent prior of this decoder; actions become residuals on its mean.
 
     Raises:

@@ -1,4 +1,4 @@
-"""High-level training on any registered task or env factory, with or without a frozen decoder (seed B.3).
+"""High-level training on any registered task or env factory, with or without a frozen decoder (the paper's B.3).
 
 ``train_transfer("velocity_control", out, decoder="decoder.safetensors")``
 trains stable-baselines3 PPO in the decoder's latent space (initial standard

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 RESUME_FREE_FIELDS = ("total_steps", "checkpoint_every", "device", "subprocess_envs")
 """Settings a resumed run may change (a longer budget, other checkpointing or hardware); the report
-also treats runs differing only in these (and the seed) as one setting."""
+also treats runs differing only in these (and the paper) as one setting."""
 
 SB3_RETURN_KEY = "rollout/ep_rew_mean"
 """``progress.csv`` column: SB3's mean training-episode return (every reward term) of the last 100 episodes."""
@@ -21,7 +21,7 @@ such as go-to-target's ``approach_reward``); written when the task reports it.""
 
 @dataclass(frozen=True)
 class TransferConfig:
-    """High-level PPO settings (defaults: the seed's Table 3).
+    """High-level PPO settings (defaults: the paper's Table 3).
 
     Attributes:
         total_steps: Environment steps in total (high-level steps).
@@ -37,10 +37,10 @@ class TransferConfig:
         max_grad_norm: Gradient norm clipping value.
         learning_rate: Adam step size.
         hidden_layers: Hidden sizes of the policy and value MLPs (tanh).
-        initial_std: Initial policy standard deviation; None takes the seed's
+        initial_std: Initial policy standard deviation; None takes the paper's
             (2.5 with a decoder, 0.5 without).
         max_latent: Bound of each latent element when a decoder is used.
-        steps_per_latent: Low-level steps per high-level action (1 in the seed).
+        steps_per_latent: Low-level steps per high-level action (1 in the paper).
         normalize_reward: Normalise rewards by a running return estimate (SB3 VecNormalize).
         subprocess_envs: Step environments in worker processes (at most one per core).
         checkpoint_every: Environment steps between resumable checkpoints.

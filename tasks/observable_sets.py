@@ -1,4 +1,4 @@
-"""Observable names and sizes and the seed's named sets: plain data, no simulator.
+"""Observable names and sizes and the paper's named sets: plain data, no simulator.
 
 The configs the command line builds its flags from (the multi-clip policy's, the
 GPT's) default to these sets, so they live apart from :mod:`tasks.observables`
@@ -75,7 +75,7 @@ DECODER: tuple[str, ...] = (
     "walker/sensors_touch",
     "walker/sensors_torque",
 )
-"""The low-level decoder's observables (seed B.2), in the seed's order."""
+"""The low-level decoder's observables (the paper's B.2), in the paper's order."""
 
 OBSERVABLE_SETS: dict[str, tuple[str, ...]] = {
     "decoder": DECODER,
@@ -92,7 +92,7 @@ OBSERVABLE_SETS: dict[str, tuple[str, ...]] = {
         sorted(k for k in (*ALL_PROPRIOCEPTION, *REFERENCE_PER_STEP, *TRACKING_EXTRAS) if k != "walker/clip_id")
     ),
 }
-"""Named observable sets: the seed's expert (B.1.2), encoder and decoder (B.2),
+"""Named observable sets: the paper's expert (B.1.2), encoder and decoder (B.2),
 GPT (B.4), ``full`` (everything dm_control's tracking task observes by
 default) and ``rollout`` (every float observable, sorted by key: the vector
 MoCapAct's released rollouts store, 2868 values with ``ref_steps`` 1..5)."""

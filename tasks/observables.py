@@ -1,4 +1,4 @@
-"""Observable names, sizes and the named sets of the seed; proprioception readout.
+"""Observable names, sizes and the named sets of the paper; proprioception readout.
 
 The names, sizes and sets are plain data in :mod:`tasks.observable_sets` (light:
 the command line's configs default to them) and are re-exported here.

@@ -135,7 +135,7 @@ REGISTRY: dict[str, TaskEntry] = {
             _gym_id("tracking_expert"),
             "tasks.tracking.env:TrackingConfig",
             "tasks.tracking.env:ClipTrackingEnv",
-            "one-snippet expert tracking (ref_steps 0, the seed's expert observables)",
+            "one-snippet expert tracking (ref_steps 0, the paper's expert observables)",
             {"ref_steps": (0,), "observables": "expert"},
         ),
         TaskEntry(
@@ -150,7 +150,7 @@ REGISTRY: dict[str, TaskEntry] = {
             _gym_id("velocity_control"),
             "tasks.downstream.velocity_control:VelocityControlConfig",
             "tasks.downstream.velocity_control:VelocityControlEnv",
-            "follow a speed and heading command redrawn every 10 s (seed B.3.2)",
+            "follow a speed and heading command redrawn every 10 s (the paper's B.3.2)",
         ),
         TaskEntry(
             "motion_completion",

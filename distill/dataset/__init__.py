@@ -1,4 +1,4 @@
-"""The expert-rollout dataset (seed A.2): one schema, its writer, its reader and the window sampler."""
+"""The expert-rollout dataset (the paper's A.2): one schema, its writer, its reader and the window sampler."""
 
 from typing import TYPE_CHECKING
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class RolloutConfig:
-    """Settings of ``mocap-hierarchy rollout`` (defaults: the seed's small dataset, A.3).
+    """Settings of ``mocap-hierarchy rollout`` (defaults: the paper's small dataset, A.3).
 
     Attributes:
         n_start: Episodes per snippet from the snippet's start (S).
@@ -20,7 +20,7 @@ class RolloutConfig:
         n_envs: Environments stepped in lockstep.
         seed: Seed of starts and action noise.
         action_noise: Standard deviation of the Gaussian noise added to each expert's mean
-            action (the seed's 0.1); None samples each expert with its own training std
+            action (the paper's 0.1); None samples each expert with its own training std
             (0.3 for ``--profile fast`` experts).
         trust_pickle: Convert experts without our sidecar from their pickles.
         engine: ``process`` (CPU envs in lockstep) or ``warp`` (one batched MuJoCo Warp env per
@@ -48,8 +48,8 @@ class SamplerConfig:
     Attributes:
         window: Steps per window (30 for the multi-clip policy, 32 for the GPT).
         weighting: ``bc``, ``cwr``, ``awr`` or ``rwr``.
-        temperature: Weighting temperature; None takes the seed's for the scheme.
-        actions: ``mean`` (the experts' mean actions, the seed's targets) or ``sampled``.
+        temperature: Weighting temperature; None takes the paper's for the scheme.
+        actions: ``mean`` (the experts' mean actions, the paper's targets) or ``sampled``.
         upsample_short_snippets: Draw windows in proportion to ``1 / snippet length``.
         max_weight: Weights are clipped to this after rescaling.
         normalize_observations: Standardise observations with the dataset statistics.

@@ -1,4 +1,4 @@
-"""Training windows from the rollout dataset, with the seed's data weighting (B.2).
+"""Training windows from the rollout dataset, with the paper's data weighting (B.2).
 
 A window is T consecutive steps of one episode: observations (grouped as the
 caller asks, e.g. decoder state and encoder reference), the expert's mean (or
@@ -45,7 +45,7 @@ from foundation.fingerprints import settings_fingerprint
 from tasks.clips.snippets import MAX_SNIPPET_LENGTH, parse_snippet_id
 
 DEFAULT_TEMPERATURES: dict[str, float | None] = {"bc": None, "cwr": 0.2, "awr": 8.0, "rwr": 4.0}
-"""The seed's Table 2 temperatures per weighting scheme."""
+"""The paper's Table 2 temperatures per weighting scheme."""
 
 
 class WindowDataset(Dataset):

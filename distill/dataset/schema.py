@@ -1,4 +1,4 @@
-"""The expert-rollout dataset format (seed A.2): names, layout and validation.
+"""The expert-rollout dataset format (the paper's A.2): names, layout and validation.
 
 One HDF5 file per clip, named ``<clip_id>.hdf5``; the writer and the reader
 both import this module, so the layout exists in one place::
@@ -157,7 +157,7 @@ def validate(f: h5py.File, where: str) -> FileLayout:
     for name in (N_RSI, N_START, REF_STEPS, OBSERVABLE_INDICES):
         if name not in f:
             raise DatasetError(
-                f"{where} lacks /{name}: not an expert-rollout file (seed A.2 layout); write one with "
+                f"{where} lacks /{name}: not an expert-rollout file (the paper's A.2 layout); write one with "
                 "`mocap-hierarchy rollout`"
             )
     snippets = tuple(sorted(str(k) for k in f if SNIPPET_GROUP.match(str(k))))

@@ -1,4 +1,4 @@
-"""Rolling experts out into the rollout dataset (seed A.2), one file per clip.
+"""Rolling experts out into the rollout dataset (the paper's A.2), one file per clip.
 
 Each snippet's expert runs S episodes from the snippet's start and R from
 random frames, with its Gaussian action noise (std 0.1), in a tracking
@@ -128,7 +128,7 @@ def write_rollout_file(
     n_start: int,
     n_rsi: int,
 ) -> Path:
-    """Writes one clip's rollouts atomically (seed A.2 layout).
+    """Writes one clip's rollouts atomically (the paper's A.2 layout).
 
     Args:
         path: Destination ``<clip_id>.hdf5``.

@@ -1,4 +1,4 @@
-"""Snippet experts: settings, their directory (seed A.1), the frozen policy, PPO training, evaluation, fan-out."""
+"""Snippet experts: settings, their directory (the paper's A.1), the frozen policy, PPO training, evaluation, fan-out."""
 
 from typing import TYPE_CHECKING
 

@@ -1,4 +1,4 @@
-"""The seed's expert evaluation on the batched engine: many experts, many episodes, one env.
+"""The paper's expert evaluation on the batched engine: many experts, many episodes, one env.
 
 The same protocol as :func:`distill.experts.evaluation.evaluate_policy` (the
 deterministic policy plus the evaluation's action noise, random starts that

@@ -8,7 +8,7 @@ here so all policies act in the same env step. Observations are normalised as
 stable-baselines3's ``VecNormalize`` does (running moments, clip 10), so a
 finished expert is written in the library's expert format and ``rollout``,
 ``distill``, ``record`` and ``expert eval`` use it unchanged; it also gets
-stable-baselines3's ``best_model.zip`` and ``vecnormalize.pkl`` (seed A.1).
+stable-baselines3's ``best_model.zip`` and ``vecnormalize.pkl`` (the paper's A.1).
 
 Checkpoints are pickle-free (safetensors plus JSON, one per snippet), written
 every ``checkpoint_every`` steps and on Ctrl-C or ``SIGTERM``; running the
@@ -248,7 +248,7 @@ def train_experts_batched(
 
     Args:
         snippets: Snippet ids; experts already done under ``out`` are skipped.
-        out: Directory of the expert directories (seed A.1 layout).
+        out: Directory of the expert directories (the paper's A.1 layout).
         config: Settings (defaults: :class:`BatchedExpertConfig`).
         clips: Clip file (None: the default source).
         progress: Print a line per update.
@@ -359,7 +359,7 @@ def _update(learner: _Learner, env: BatchedTrackingEnv, observations, keys, conf
 
 
 def _record(learners, env, keys, config, finished, progress, started) -> None:
-    """Evaluations (the seed's protocol, batched), best policies, checkpoints and finished experts."""
+    """Evaluations (the paper's protocol, batched), best policies, checkpoints and finished experts."""
     _evaluate_due(learners, env, keys, config, progress, started)
     for learner in learners:
         if learner.steps >= learner.next_checkpoint and learner.steps < config.total_steps:
@@ -428,7 +428,7 @@ def _keep_evaluation(learner: _Learner, result, policy: ExpertPolicy, config, pr
 
 
 def _finish(learner: _Learner, env: BatchedTrackingEnv, keys, config: BatchedExpertConfig) -> dict:
-    """Writes the best policy's A.1 files, the seed's CPU evaluation and ``done.json``."""
+    """Writes the best policy's A.1 files, the paper's CPU evaluation and ``done.json``."""
     expert = learner.expert
     if not expert.sidecar.is_file():
         export_policy(learner, keys, env.observation_sizes, config).save(expert)

@@ -1,4 +1,4 @@
-"""Configuration of snippet experts, training and evaluation: the seed's Table 1 and B.1.2 as defaults.
+"""Configuration of snippet experts, training and evaluation: the paper's Table 1 and B.1.2 as defaults.
 
 Light on purpose (no torch, no simulator): the command line builds its flags from these classes.
 """
@@ -14,7 +14,7 @@ from foundation.cores import available_cores
 
 @dataclass(frozen=True)
 class ExpertConfig:
-    """How to train one clip-snippet expert with PPO (defaults: seed Table 1, B.1.2).
+    """How to train one clip-snippet expert with PPO (defaults: the paper's Table 1, B.1.2).
 
     Attributes:
         total_steps: Environment steps budget.
@@ -36,8 +36,8 @@ class ExpertConfig:
             (``schedule`` ``piecewise``); with ``adaptive``, the first is the start value.
         learning_rate_steps: With ``piecewise``, the environment steps at which the step size moves on
             to the next of ``learning_rates`` (one fewer than the rates, increasing; e.g. ``600000``
-            with rates ``3e-4,1e-4``); empty: the rates share the budget in equal parts (the seed's).
-        schedule: ``piecewise`` (the seed's: ``learning_rates`` over equal parts of the budget) or
+            with rates ``3e-4,1e-4``); empty: the rates share the budget in equal parts (the paper's).
+        schedule: ``piecewise`` (the paper's: ``learning_rates`` over equal parts of the budget) or
             ``adaptive`` (after every update, divide the step size by 1.5 when the update's KL divergence
             exceeded twice ``desired_kl``, multiply it by 1.5 when it stayed below half of it).
         desired_kl: KL divergence per update the ``adaptive`` schedule aims at.
@@ -52,11 +52,11 @@ class ExpertConfig:
             those steps). Evaluations keep ``eval_action_noise``; a saved expert records the noise
             it was trained with at that point.
         learn_action_std: Learn the policy's standard deviation (state-independent, per joint) from
-            ``action_std`` on, instead of keeping it fixed (the seed fixes it).
+            ``action_std`` on, instead of keeping it fixed (the paper fixes it).
         residual_actions: Policy outputs offsets from the reference's next pose instead of
-            absolute joint targets (not in the seed; see the README for why it exists).
+            absolute joint targets (not in the paper; see the README for why it exists).
         reference_observations: Also observe the reference's next five frames relative to the walker
-            (the multi-clip encoder's reference observables), not only ``time_in_clip`` (not in the seed).
+            (the multi-clip encoder's reference observables), not only ``time_in_clip`` (not in the paper).
         termination_threshold: Tracking error that ends an episode (evaluations always use it).
         termination_start: With ``termination_curriculum_steps``, the training threshold at step 0; it moves
             linearly to ``termination_threshold`` over those steps (0: no curriculum).
@@ -288,7 +288,7 @@ FAST_PROFILE_CHANGES: dict[str, Any] = {
     "final_eval_episodes": 1000,
     "checkpoint_every": 50_000,
 }
-"""What ``--profile fast`` changes from the seed's settings: the values measured to learn fastest on a small CPU
+"""What ``--profile fast`` changes from the paper's settings: the values measured to learn fastest on a small CPU
 machine (``benchmarks/expert_learning.py``; the README's expert section has the curves and their commands)."""
 
 
@@ -317,9 +317,9 @@ half the step size")."""
 
 
 def expert_profiles() -> dict[str, ExpertConfig]:
-    """Named starting points for expert training: ``seed`` (Table 1, B.1.2), ``fast``, ``fast-3m`` and ``fast-3m-wide``.
+    """Named starting points for expert training: ``paper`` (Table 1, B.1.2), ``fast``, ``fast-3m`` and ``fast-3m-wide``.
 
-    ``fast`` is the seed's settings with :data:`FAST_PROFILE_CHANGES`; ``fast-3m`` is
+    ``fast`` is the paper's settings with :data:`FAST_PROFILE_CHANGES`; ``fast-3m`` is
     ``fast`` with :data:`FAST_3M_SCHEDULES`; ``fast-3m-wide`` is ``fast-3m`` with
     :data:`FAST_3M_WIDE_CHANGES`. Flags given beside ``--profile`` change any of them further
     (through :func:`with_changes`).
@@ -327,7 +327,7 @@ def expert_profiles() -> dict[str, ExpertConfig]:
     fast = ExpertConfig(**FAST_PROFILE_CHANGES)
     fast_3m = dataclasses.replace(fast, **FAST_3M_SCHEDULES)
     return {
-        "seed": ExpertConfig(),
+        "paper": ExpertConfig(),
         "fast": fast,
         "fast-3m": fast_3m,
         "fast-3m-wide": dataclasses.replace(fast_3m, **FAST_3M_WIDE_CHANGES),
@@ -356,7 +356,7 @@ class BatchedExpertConfig:
     """How to train many snippet experts at once on the batched engine (MuJoCo Warp, rsl_rl's PPO).
 
     One policy per snippet, each on its own group of worlds of one batched env.
-    The seed's settings where they transfer (discount, GAE, clipping, networks,
+    The paper's settings where they transfer (discount, GAE, clipping, networks,
     fixed action noise, termination); the batch-size dependent ones are the
     GPU-PPO field's (rsl_rl, Isaac Lab, mjlab): thousands of worlds, short
     rollouts, few large minibatches, a KL-adaptive step size.
@@ -380,7 +380,7 @@ class BatchedExpertConfig:
         reference_observations: Also observe the reference's next five frames (as ``ExpertConfig``).
         termination_threshold: Tracking error that ends an episode (seed: 0.3).
         train_min_steps: Random training starts exclude the last ``train_min_steps + 1`` frames.
-        eval_every: Evaluate every this many steps (the seed's protocol, on the batched engine) and keep
+        eval_every: Evaluate every this many steps (the paper's protocol, on the batched engine) and keep
             the best policy by normalised reward.
         eval_episodes: Episodes per snippet and evaluation.
         eval_min_steps: Evaluation starts exclude the last ``eval_min_steps + 1`` frames (30).
@@ -441,7 +441,7 @@ class BatchedExpertConfig:
 
 @dataclass(frozen=True)
 class EvaluationConfig:
-    """How to evaluate an expert (defaults: the seed's protocol, B.1.2).
+    """How to evaluate an expert (defaults: the paper's protocol, B.1.2).
 
     Attributes:
         episodes: Number of episodes.
@@ -478,7 +478,7 @@ class PiecewiseLearningRate:
 
     SB3 calls it with the remaining fraction of training (1 at the start, 0 at
     the end; measured against the whole budget, also after a resume). Without
-    ``switch_steps`` the rates share the budget equally: three give the seed's
+    ``switch_steps`` the rates share the budget equally: three give the paper's
     1e-5 / 6e-6 / 3e-6 thirds. With them (and ``total_steps``), rate ``i + 1``
     starts at environment step ``switch_steps[i]``.
     """

@@ -55,7 +55,7 @@ class EvaluationResult:
         """Standard error of the mean of a per-episode ``metric`` (NaN with fewer than two episodes).
 
         How far the mean over these episodes may lie from the policy's own: e.g. about 0.005
-        in normalised length over the seed's 1000 episodes for a turning expert near 0.9.
+        in normalised length over the paper's 1000 episodes for a turning expert near 0.9.
         """
         values = np.asarray(self.per_episode[metric], dtype=float)
         if values.size < 2:
@@ -77,7 +77,7 @@ class EvaluationResult:
 
 
 EXPERT_REFERENCE_OBSERVABLES = ("walker/reference_rel_bodies_pos_local", "walker/reference_rel_bodies_quats")
-"""What an expert trained with ``reference_observations`` adds to the seed's observables: the multi-clip
+"""What an expert trained with ``reference_observations`` adds to the paper's observables: the multi-clip
 encoder's view of the reference (bodies' positions and orientations relative to the walker's)."""
 
 

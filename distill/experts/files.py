@@ -1,4 +1,4 @@
-"""The expert directory format (seed A.1), plus a pickle-free sidecar.
+"""The expert directory format (the paper's A.1), plus a pickle-free sidecar.
 
 One directory per snippet expert, named by the snippet id::
 
@@ -16,7 +16,7 @@ One directory per snippet expert, named by the snippet id::
         done.json                       written when training has finished
 
 ``best_model.zip`` and ``vecnormalize.pkl`` load with stable-baselines3's own
-``PPO.load`` and ``VecNormalize.load``, as the seed promises; both unpickle,
+``PPO.load`` and ``VecNormalize.load``, as the paper promises; both unpickle,
 so this library's own consumers (rollouts, evaluation) read the safetensors
 sidecar instead (written like the decoder file, :mod:`foundation.described_file`)
 and never execute code from a file. Experts from
@@ -161,7 +161,7 @@ class ExpertDir:
 
     @property
     def policy_files(self) -> tuple[Path, Path, Path]:
-        """The seed A.1 files every expert directory holds."""
+        """The paper's A.1 files every expert directory holds."""
         return self.clip_info, self.best_model, self.vecnormalize
 
     def is_done(self) -> bool:
@@ -187,7 +187,7 @@ class ExpertDir:
             if not path.is_file():
                 raise ExpertFilesError(
                     f"expert {self.root.name}: {path.relative_to(self.root)} is missing; an expert directory needs "
-                    "clip_info.json and eval_rsi/model/{best_model.zip,vecnormalize.pkl} (seed A.1). Train it with "
+                    "clip_info.json and eval_rsi/model/{best_model.zip,vecnormalize.pkl} (the paper's A.1). Train it with "
                     f"`mocap-hierarchy expert train --snippet {self.root.name} --out {self.root.parent}`"
                 )
 
@@ -204,7 +204,7 @@ def read_clip_info(root: Path) -> dict:
     try:
         info = json.loads(path.read_text())
     except FileNotFoundError:
-        raise ExpertFilesError(f"{path} is missing (seed A.1 layout)") from None
+        raise ExpertFilesError(f"{path} is missing (the paper's A.1 layout)") from None
     except json.JSONDecodeError as error:
         raise ExpertFilesError(f"{path} is not valid JSON: {error}") from None
     missing = [k for k in ("clip_id", "start_step", "end_step") if k not in info]

@@ -13,7 +13,7 @@ def load_expert(root: str | Path, trust_pickle: bool = False, evaluation: str = 
     """Loads an expert directory as an :class:`ExpertPolicy`.
 
     Args:
-        root: The expert directory (seed A.1 layout).
+        root: The expert directory (the paper's A.1 layout).
         trust_pickle: Allow converting an expert without our ``expert.safetensors`` (MoCapAct's, or
             one whose file was deleted) from its stable-baselines3 files. The conversion reads the
             pickles with inert stand-ins and executes nothing from them (:mod:`distill.experts.sb3_import`);

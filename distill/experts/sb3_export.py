@@ -1,7 +1,7 @@
 """stable-baselines3 files (``best_model.zip``, ``vecnormalize.pkl``) for an expert trained elsewhere.
 
 Experts trained on the batched engine live in the library's own format
-(``expert.safetensors``); the seed's A.1 directory also promises the two files
+(``expert.safetensors``); the paper's A.1 directory also promises the two files
 stable-baselines3 loads with ``PPO.load`` and ``VecNormalize.load``. This
 module writes them from an :class:`~distill.experts.policy.ExpertPolicy`, so
 every expert directory looks the same whichever engine trained it.

@@ -1,6 +1,6 @@
-"""Training one snippet expert with stable-baselines3 PPO (seed B.1.2).
+"""Training one snippet expert with stable-baselines3 PPO (the paper's B.1.2).
 
-``train_expert`` writes the seed's A.1 directory (see :mod:`distill.experts.files`):
+``train_expert`` writes the paper's A.1 directory (see :mod:`distill.experts.files`):
 the best model by normalised evaluation reward is kept in ``eval_rsi/model``,
 a resumable checkpoint is written every ``checkpoint_every`` steps, and an
 interrupted run continues from its last checkpoint when started again with
@@ -109,7 +109,7 @@ def _training_fields(config: ExpertConfig) -> dict:
 
 
 def keep_training(state: dict, length: float, reward: float, steps: int, config: ExpertConfig) -> bool:
-    """The seed's early-stopping rule (B.1.2); updates ``state`` and returns False to stop.
+    """The paper's early-stopping rule (B.1.2); updates ``state`` and returns False to stop.
 
     Once the normalised episode length reaches ``early_stop_length``, training
     stops when the normalised reward has not improved by more than
@@ -284,7 +284,7 @@ class _Trainer:
         return {"steps": best["steps"], "episodes": episodes, **evaluation}
 
     def _score(self, policy, episodes: int, seed: int, progress: bool = False) -> dict:
-        """The seed's protocol (random starts, evaluation noise, the run's threshold): mean metrics of ``policy``."""
+        """The paper's protocol (random starts, evaluation noise, the run's threshold): mean metrics of ``policy``."""
         config = self.config
         evaluation = evaluate_policy(
             policy,
@@ -338,7 +338,7 @@ def train_expert(
     Args:
         snippet: Snippet id (``CLIP-START-END``) or a whole clip id.
         out: Folder that receives the ``<snippet>/`` expert directory.
-        config: Training settings (seed defaults).
+        config: Training settings (the paper's defaults).
         clips: Clip file (None: resolved from the snippet id).
         progress: Show a progress bar.
 
@@ -418,7 +418,7 @@ def _vec_env(tracking: TrackingConfig, config: ExpertConfig):
 
 
 def _learning_rate(config: ExpertConfig, state: dict | None):
-    """The step-size schedule: the seed's piecewise one, or a KL-adaptive one (resumed at its last value)."""
+    """The step-size schedule: the paper's piecewise one, or a KL-adaptive one (resumed at its last value)."""
     if config.schedule == "adaptive":
         start = (state or {}).get("learning_rate", config.learning_rates[0])
         return KlAdaptiveLearningRate(start, config.desired_kl)

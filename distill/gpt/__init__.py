@@ -1,4 +1,4 @@
-"""The motion GPT (seed Table 4): model with an exact key/value cache, training, motion completion."""
+"""The motion GPT (the paper's Table 4): model with an exact key/value cache, training, motion completion."""
 
 from typing import TYPE_CHECKING
 

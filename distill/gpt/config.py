@@ -16,7 +16,7 @@ from tasks.observable_sets import OBSERVABLE_SETS
 
 @dataclass(frozen=True)
 class GptConfig:
-    """The GPT's architecture (seed Table 4).
+    """The GPT's architecture (the paper's Table 4).
 
     Attributes:
         layers: Transformer blocks.
@@ -27,7 +27,7 @@ class GptConfig:
         attention_dropout: Dropout on the attention weights.
         residual_dropout: Dropout on each block's residual branches.
         rope_base: Base of the rotary position frequencies.
-        observables: The state observables, in input order (seed B.4).
+        observables: The state observables, in input order (the paper's B.4).
     """
 
     layers: int = 8
@@ -53,12 +53,12 @@ class GptConfig:
 
 
 def default_gpt_trainer() -> TrainerConfig:
-    """The seed's Table 4 loop: AdamW 3e-6, weight decay 0.1, batch 256, clip 1, 2M steps."""
+    """The paper's Table 4 loop: AdamW 3e-6, weight decay 0.1, batch 256, clip 1, 2M steps."""
     return TrainerConfig(steps=2_000_000, learning_rate=3e-6, weight_decay=0.1, batch_size=256, grad_clip=1.0)
 
 
 def default_gpt_sampler(gpt: GptConfig | None = None) -> SamplerConfig:
-    """Windows of the block size, unweighted (plain mean-squared error, as the seed)."""
+    """Windows of the block size, unweighted (plain mean-squared error, as the paper)."""
     return SamplerConfig(window=(gpt or GptConfig()).block_size, weighting="bc", normalize_observations=True)
 
 

@@ -3,7 +3,7 @@
 A transformer step costs about ``6 x parameters x tokens`` floating-point
 operations (forward and backward), tokens being ``batch_size x block_size``.
 The machine's rate comes from timing a float32 matrix product with torch's
-threads, so the estimate reflects the cores this process really has. The seed's
+threads, so the estimate reflects the cores this process really has. The paper's
 57M-parameter GPT at batch 256 takes about a minute per step on two cores, which
 is why ``gpt train`` on a CPU prints this first.
 """

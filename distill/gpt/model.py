@@ -1,4 +1,4 @@
-"""The motion GPT (seed B.4): a causal transformer from humanoid states to the experts' mean actions.
+"""The motion GPT (the paper's B.4): a causal transformer from humanoid states to the experts' mean actions.
 
 Inputs are continuous: each step's standardised GPT observation (joint
 positions and velocities, velocimeter, gyro, end effectors, world z axis,
@@ -9,7 +9,7 @@ trained with mean-squared error against the experts' mean actions.
 Architecture (Table 4 defaults): 8 pre-norm blocks of 8-head self-attention
 and a 4x GELU MLP, embedding 768, dropout 0.1 on embedding, attention and
 residual paths, context (block) of 32 steps; about 57M parameters with the
-seed's 206 observation values.
+paper's 206 observation values.
 
 **Positions and the context window.** Positions are rotary (RoPE): attention
 scores depend only on how many steps apart two states are. Every layer lets a

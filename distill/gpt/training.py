@@ -1,4 +1,4 @@
-"""Training the motion GPT on the rollout dataset (seed B.4); ends by writing ``gpt.safetensors``.
+"""Training the motion GPT on the rollout dataset (the paper's B.4); ends by writing ``gpt.safetensors``.
 
 ``train_gpt(data, out)`` writes into ``out``:
 

@@ -1,4 +1,4 @@
-"""The multi-clip policy (seed B.2): encoder and decoder, distillation, evaluation."""
+"""The multi-clip policy (the paper's B.2): encoder and decoder, distillation, evaluation."""
 
 from typing import TYPE_CHECKING
 

@@ -21,7 +21,7 @@ class PolicyEvaluationConfig:
     Attributes:
         episodes: Episodes per snippet (or clip).
         init: ``random`` (reference-state initialisation) or ``start``.
-        min_steps: Random starts exclude the last ``min_steps + 1`` frames (the seed's 30).
+        min_steps: Random starts exclude the last ``min_steps + 1`` frames (the paper's 30).
         n_envs: Environments stepped in lockstep per snippet.
         seed: Seed of the starts.
     """
@@ -72,7 +72,7 @@ class LatentPriorConfig:
 
 @dataclass(frozen=True)
 class NpmpConfig:
-    """The multi-clip policy's architecture and objective (seed B.2, Table 2).
+    """The multi-clip policy's architecture and objective (the paper's B.2, Table 2).
 
     Attributes:
         latent_size: Size of ``z``.
@@ -110,5 +110,5 @@ class NpmpConfig:
 
 
 def default_sampler() -> SamplerConfig:
-    """The seed's distillation sampling: windows of 30, RWR weighting (best in seed C.2.1), short clips upsampled."""
+    """The paper's distillation sampling: windows of 30, RWR weighting (best in seed C.2.1), short clips upsampled."""
     return SamplerConfig(window=30, weighting="rwr", normalize_observations=True)

@@ -1,4 +1,4 @@
-"""The multi-clip tracking policy (seed B.2): a recurrent stochastic encoder and the decoder.
+"""The multi-clip tracking policy (the paper's B.2): a recurrent stochastic encoder and the decoder.
 
 ``pi(a_t, z_t | s_t, s_ref_t, z_{t-1}) = pi_enc(z_t | s_t, s_ref_t, z_{t-1}) pi_dec(a_t | s_t, z_t)``
 
@@ -147,7 +147,7 @@ class NpmpPolicy(nn.Module):
         return self.decoder(torch.cat([decoder_input, z], dim=-1))
 
     def forward(self, batch: dict[str, torch.Tensor]) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
-        """The seed's objective on a batch of windows (the trainer's loss).
+        """The paper's objective on a batch of windows (the trainer's loss).
 
         Args:
             batch: ``encoder`` ``(B, T, De)`` and ``decoder`` ``(B, T, Dd)``

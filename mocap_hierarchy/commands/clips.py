@@ -32,7 +32,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     )
     snippets.set_defaults(handler=_snippets)
 
-    split = commands.add_parser("split", help="split a clip length into snippets (seed B.1.1)")
+    split = commands.add_parser("split", help="split a clip length into snippets (the paper's B.1.1)")
     split.add_argument("length", type=int, help="number of steps in the clip")
     split.add_argument("--max-len", type=int, default=210, help="longest snippet, in steps (default: 210)")
     split.add_argument("--overlap", type=int, default=33, help="steps shared by neighbouring snippets (default: 33)")

@@ -35,7 +35,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
 
     train = commands.add_parser("train", help="train one snippet expert with PPO (resumes if interrupted)")
     train.add_argument("--snippet", required=True, help="snippet id CLIP-START-END (or a clip id)")
-    train.add_argument("--out", type=Path, required=True, help="folder receiving <snippet>/ (seed A.1 layout)")
+    train.add_argument("--out", type=Path, required=True, help="folder receiving <snippet>/ (the paper's A.1 layout)")
     train.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
     train.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")
     _add_profile(train)
@@ -99,8 +99,8 @@ def _add_profile(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--profile",
         choices=tuple(expert_profiles()),
-        default="seed",
-        help="starting settings, changed further by the flags below: seed (the defaults shown), "
+        default="paper",
+        help="starting settings, changed further by the flags below: paper (the defaults shown, MoCapAct's), "
         f"fast ({_listed(FAST_PROFILE_CHANGES)}), fast-3m (fast with {_listed(FAST_3M_SCHEDULES)}; one "
         f"--learning-rates value drops its step-size schedule), or fast-3m-wide (fast-3m with "
         f"{_listed(FAST_3M_WIDE_CHANGES)})",
@@ -155,7 +155,7 @@ def _train_many_batched(args: argparse.Namespace, snippets: list[str]) -> None:
     given = [f"--{name.replace('_', '-')}" for name in cpu_only if getattr(args, name, None) is not None]
     if args.ray is not None or args.workers:
         given.append("--ray/--workers")
-    if args.profile != "seed":
+    if args.profile != "paper":
         given.append(f"--profile {args.profile}")
     if given:
         raise ValueError(f"{', '.join(given)} do not apply to --engine warp (see BatchedExpertConfig in --help)")

@@ -5,12 +5,12 @@ Stages:
 1. clips: generate (or reuse) the synthetic clip library and split it into snippets;
 2. playback: roll the fast tracking environment on every snippet with the
    open-loop playback controller (a baseline, and the environment's speed);
-3. experts: train snippet experts for a few snippets (PPO, the seed's
+3. experts: train snippet experts for a few snippets (PPO, the paper's
    settings with a small budget; residual actions by default, which start at
    the playback controller's level, see ``benchmarks/expert_learning.py``), as parallel jobs, and
    evaluate them like the playback rows;
-4. dataset: roll the experts out into the rollout dataset (seed A.2);
-5. distill: the multi-clip policy and its frozen decoder file (seed B.2's
+4. dataset: roll the experts out into the rollout dataset (the paper's A.2);
+5. distill: the multi-clip policy and its frozen decoder file (the paper's B.2's
    objective; hidden layers shrunk to fit the budget), evaluated against the experts;
 6. transfer: velocity control (commands straight ahead below 1.5 m/s by default,
    the speeds the synthetic clips show) trained with PPO on top of a decoder and,

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 EPISODE_LIMIT = 500
-"""Steps per velocity-control episode in the quickstart (the seed's task allows 2000)."""
+"""Steps per velocity-control episode in the quickstart (the paper's task allows 2000)."""
 
 EVALUATION_EPISODES = 10
 """Deterministic velocity-control evaluation episodes (times ``scale``): a speed slope needs several."""
@@ -35,17 +35,17 @@ class QuickstartConfig:
         residual_actions: Experts act as offsets from the reference pose.
         rollouts_per_snippet: Start-of-snippet and random-start episodes each, per expert.
         distill_steps: Optimiser steps of the distillation.
-        distill_hidden: Width of the encoder's and decoder's hidden layers (the seed: 1024).
+        distill_hidden: Width of the encoder's and decoder's hidden layers (the paper: 1024).
         transfer_decoder: The decoder velocity control runs on: a shipped decoder's name
             (``synthetic-v3``, ``synthetic-v2`` or ``synthetic-v1``, distilled from experts trained far longer
             than the quickstart can), a decoder file, or ``own`` for the one this quickstart distils.
         transfer_prior: What the high-level actions are relative to: ``auto``, the latent prior
             shipped with ``transfer_decoder`` (``synthetic-v3`` and ``synthetic-v2`` ship one: actions are residuals
             on it) or none if it ships none; ``none``, the latents themselves; or a prior file.
-        velocity_max_speed: Commanded speeds are uniform below this, m/s (the seed's 4.5 asks
+        velocity_max_speed: Commanded speeds are uniform below this, m/s (the paper's 4.5 asks
             for running, which the synthetic clips never show; they move at 0-1.4 m/s).
         velocity_heading_spread: Commanded headings lie within this many radians of the way
-            the walker faces at reset: 0 is straight ahead, 3.1416 any direction (the seed's).
+            the walker faces at reset: 0 is straight ahead, 3.1416 any direction (the paper's).
         transfer_steps: Environment steps of each velocity-control run.
         record_steps: Steps of each velocity-control recording.
         scale: Multiplies every budget (episodes, steps, rollouts) for real runs.

@@ -20,7 +20,7 @@ from foundation.atomic import write_json
 from mocap_hierarchy.report.sources import ExpertRun
 
 EVALUATION_FILES = {"expert_eval_noise.json": 0.1, "expert_eval_deterministic.json": 0.0}
-"""File name to action noise: the seed's protocol (noise 0.1), and the same without noise."""
+"""File name to action noise: the paper's protocol (noise 0.1), and the same without noise."""
 
 
 def _up_to_date(path: Path, config: EvaluationConfig, snippets: set[str]) -> bool:
@@ -36,7 +36,7 @@ def _up_to_date(path: Path, config: EvaluationConfig, snippets: set[str]) -> boo
 def evaluate_experts_both_ways(run: Path, experts: list[ExpertRun], episodes: int) -> list[Path]:
     """Evaluates every finished-or-not expert of each group with noise 0.1 and without; returns the files written.
 
-    Random starts excluding the last 30 frames (the seed's protocol), ``episodes`` per expert.
+    Random starts excluding the last 30 frames (the paper's protocol), ``episodes`` per expert.
     Files already holding the same settings and snippets are kept as they are.
     """
     from distill.experts.evaluation import evaluate_policy

@@ -69,7 +69,7 @@ def _metric_panels():
 
 
 def plot_expert_curves(experts: list[ExpertRun], path: Path) -> Path:
-    """Quantiles over snippets of the experts' evaluations against training steps (the seed's Fig. 2 style)."""
+    """Quantiles over snippets of the experts' evaluations against training steps (the paper's Fig. 2 style)."""
     quantiles = expert_quantiles(experts)
     figure, panels = _metric_panels()
     for axis, key, title in panels:

@@ -85,7 +85,7 @@ def parse_snippet_id(text: str) -> SnippetId:
 def split_snippets(
     clip_length: int, max_len: int = MAX_SNIPPET_LENGTH, overlap: int = SNIPPET_OVERLAP
 ) -> list[tuple[int, int]]:
-    """Cuts a clip into equally long, overlapping snippets (seed B.1.1, MoCapAct's rule).
+    """Cuts a clip into equally long, overlapping snippets (the paper's B.1.1, MoCapAct's rule).
 
     Clips up to ``max_len`` steps stay whole. Longer clips are cut into the
     fewest snippets that fit, consecutive ones sharing ``overlap`` steps. Every

@@ -31,7 +31,7 @@ from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 from tasks.walker import WalkerModel
 
 COMPLETION_OBSERVABLES: tuple[str, ...] = (*OBSERVABLE_SETS["gpt"], "walker/time_in_clip")
-"""Default observables: the GPT's, plus what the seed's experts read (``time_in_clip``)."""
+"""Default observables: the GPT's, plus what the paper's experts read (``time_in_clip``)."""
 
 
 @dataclass(frozen=True)

@@ -1,4 +1,4 @@
-"""Velocity control (seed B.3.2): follow a commanded horizontal velocity.
+"""Velocity control (the paper's B.3.2): follow a commanded horizontal velocity.
 
 A target speed in [0, 4.5) m/s and heading in [0, 2 pi) are drawn at reset
 and every 10 s; the reward is :func:`reward` of the walker's horizontal
@@ -26,7 +26,7 @@ VELOCITY_OBSERVABLES = ("walker/torso_xvel", "walker/torso_yvel")
 
 
 def reward(v: np.ndarray, v_target: np.ndarray, eta: float = 0.75, k: float = 7.0) -> float:
-    """Velocity-tracking reward of seed B.3.2.
+    """Velocity-tracking reward of the paper's B.3.2.
 
     ``exp(-((|v| - |v*|) / eta)^2) * ((1 + cos(angle between v and v*)) / 2)^k``.
     When either velocity is zero the angle is undefined and the direction
@@ -55,10 +55,10 @@ def reward(v: np.ndarray, v_target: np.ndarray, eta: float = 0.75, k: float = 7.
 
 @dataclass(frozen=True)
 class VelocityControlConfig:
-    """Configuration of :class:`VelocityControlEnv` (seed B.3.2 values).
+    """Configuration of :class:`VelocityControlEnv` (the paper's B.3.2 values).
 
     Attributes:
-        max_speed: Commanded speeds are uniform in [0, max_speed), m/s. The seed's 4.5
+        max_speed: Commanded speeds are uniform in [0, max_speed), m/s. The paper's 4.5
             suits decoders trained on the CMU data (which runs); the built-in synthetic
             clips move at 0-1.4 m/s, so on ``synthetic-v1`` 1.5 asks only for speeds
             its experts showed (README, "Commands the decoder's skills can reach").
@@ -67,7 +67,7 @@ class VelocityControlConfig:
         command_seconds: A new command is drawn this often.
         max_steps: Episode length limit (2000 steps = 60 s).
         random_heading: Turn the walker to a uniform random heading at reset.
-        heading_spread: None (the seed): commanded headings are uniform over the
+        heading_spread: None (the paper): commanded headings are uniform over the
             circle. A value ``h`` draws them within ``[-h, h]`` radians of the ``+x``
             axis, the way the walker faces at reset unless ``random_heading``:
             ``0`` commands speeds straight ahead only, a task whose skills (stand,

@@ -56,7 +56,7 @@ INITIAL_ERROR_LIMIT = 1e-2
 
 @dataclass(frozen=True)
 class TrackingConfig:
-    """Configuration of :class:`ClipTrackingEnv` (defaults: the seed's multi-clip setting).
+    """Configuration of :class:`ClipTrackingEnv` (defaults: the paper's multi-clip setting).
 
     Attributes:
         snippets: Snippet ids (``CLIP-START-END``) or clip ids to track; one is
@@ -70,7 +70,7 @@ class TrackingConfig:
         init: ``"random"`` (reference-state initialisation) or ``"start"``.
         min_steps: Random starts leave at least ``min_steps + 1`` frames (plus
             the look-ahead) before the snippet's end; 9 excludes the last 10
-            frames (training), 29 the last 30 (the seed's evaluation).
+            frames (training), 29 the last 30 (the paper's evaluation).
         termination_threshold: Tracking error that ends an episode.
         action_noise: Standard deviation of Gaussian noise added to actions
             (MoCapAct's experts: 0.1); noisy actions are clipped to [-1, 1].

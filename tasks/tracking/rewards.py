@@ -1,6 +1,6 @@
 """Tracking error and the CoMic tracking reward, as pure functions.
 
-The definitions are dm_control's (``tasks/reference_pose``), which the seed's
+The definitions are dm_control's (``tasks/reference_pose``), which the paper's
 experts were trained with (Hasenclever et al. 2020):
 
 * termination error: ``0.5 * mean|body positions - ref| + 0.5 * mean|joints - ref|``;

@@ -53,7 +53,7 @@ def test_every_snippet_gets_a_complete_expert_directory(trained):
         assert not expert.checkpoint_dir.exists()
         done = json.loads(expert.done.read_text())
         assert done["steps"] == 256 and done["engine"] == "warp"
-        assert done["cpu_evaluation"]["config"]["min_steps"] == 29  # the seed's protocol, on both engines
+        assert done["cpu_evaluation"]["config"]["min_steps"] == 29  # the paper's protocol, on both engines
         assert done["batched_evaluation"]["config"]["engine"] == "warp"
         records = json.loads(expert.evaluations.read_text())
         assert [r["steps"] for r in records] == [0, 128, 256]

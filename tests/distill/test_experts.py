@@ -46,7 +46,7 @@ def test_training_writes_the_seed_layout(trained_expert, snippet):
 
 def test_sb3_files_load_and_match_the_pickle_free_policy(trained_expert, snippet):
     expert = ExpertDir(trained_expert)
-    model = PPO.load(expert.best_model, device="cpu")  # stable-baselines3's own loader (seed A.1)
+    model = PPO.load(expert.best_model, device="cpu")  # stable-baselines3's own loader (the paper's A.1)
     with expert.vecnormalize.open("rb") as f:
         normaliser = pickle.load(f)
     policy = load_expert(trained_expert)  # reads only JSON + safetensors
@@ -182,7 +182,7 @@ def test_an_update_size_schedule_grows_the_updates_at_its_step_also_across_a_res
     clip_library, tmp_path, monkeypatch, snippet, tiny
 ):
     # 512 steps per update, 1024 from step 1024 on: updates end at 512, 1024, 2048, 3072. One step
-    # size, so that the budgets of the two runs compared below do not move the seed's thirds.
+    # size, so that the budgets of the two runs compared below do not move the paper's thirds.
     tiny = dataclasses.replace(tiny, learning_rates=(1e-4,))
     config = dataclasses.replace(tiny, total_steps=3072, steps_per_update_steps=(1024,), later_steps_per_update=(1024,))
     train_expert(snippet, tmp_path / "straight", config, progress=False)
@@ -469,7 +469,7 @@ def test_adaptive_step_size_learned_noise_reference_observations_and_curriculum(
     rates = [float(row["train/learning_rate"]) for row in rows if row["train/learning_rate"]]
     assert rates[0] == 1e-3 and len(set(rates)) > 1  # adapted after the first update
     thresholds = [float(row["train/termination_threshold"]) for row in rows]
-    assert thresholds == pytest.approx([1.0, 0.65, 0.3])  # loose to the seed's 0.3 over 1024 steps
+    assert thresholds == pytest.approx([1.0, 0.65, 0.3])  # loose to the paper's 0.3 over 1024 steps
     policy = load_expert(expert.root)
     assert set(EXPERT_REFERENCE_OBSERVABLES) <= set(policy.keys)
     assert abs(policy.spec.action_std - 0.1) > 1e-6  # learned, and recorded as the expert's noise

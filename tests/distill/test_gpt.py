@@ -247,7 +247,7 @@ def test_cpu_cost_is_said_before_training_with_sizes_that_fit():
     from distill.trainer import TrainerConfig
 
     seed_size = approximate_parameters(8, 768, 207, 56)
-    assert 50e6 < seed_size < 65e6  # the seed's GPT is about 57M parameters
+    assert 50e6 < seed_size < 65e6  # the paper's GPT is about 57M parameters
     flops = 50e9  # a 2-core machine
     cost = estimate(seed_size, 32, default_gpt_trainer(), flops)
     assert 30 < cost.seconds_per_step < 90  # "did not finish one step in 100 s" on a shared machine

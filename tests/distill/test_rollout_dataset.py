@@ -16,7 +16,7 @@ def test_file_follows_the_seed_layout(rollout_dir):
         assert f.attrs[schema.SCHEMA_ATTRIBUTE] == 2
         assert f["n_start_rollouts"][()] == 2 and f["n_rsi_rollouts"][()] == 3
         assert list(f["ref_steps"][...]) == [1, 2, 3, 4, 5]
-        # the seed's example indices (A.2)
+        # the paper's example indices (A.2)
         assert list(f["observable_indices/walker/actuator_activation"][...]) == list(range(56))
         assert list(f["observable_indices/walker/appendages_pos"][...]) == list(range(56, 71))
         assert list(f["observable_indices/walker/body_height"][...]) == [71]
@@ -293,7 +293,7 @@ def test_rollout_command_writes_the_metrics(trained_expert, tmp_path, capsys):
 
 @pytest.mark.parametrize(("action_noise", "expected_std"), [(0.1, 0.1), (None, 0.4)])
 def test_rollout_noise_is_the_seeds_unless_told_to_keep_the_experts(tmp_path, action_noise, expected_std):
-    """Experts trained with more noise (0.4 here) are rolled out with the seed's 0.1 by default."""
+    """Experts trained with more noise (0.4 here) are rolled out with the paper's 0.1 by default."""
     config = RolloutConfig(n_start=1, n_rsi=1, action_noise=action_noise)
     path = rollout_clip("SYN_stand", {"SYN_stand-0-181": PlaybackPolicy(action_std=0.4)}, tmp_path, config)
     dataset = RolloutDataset(path)

@@ -61,7 +61,7 @@ def test_heading_spread_keeps_commands_within_it(clip_library):
     assert np.allclose(headings(0.0), 0.0)  # straight ahead only
     narrow = headings(0.5)
     assert np.all(np.abs(narrow) <= 0.5) and np.ptp(narrow) > 0.3
-    assert np.abs(headings(None)).max() > 2.0  # the seed's: any direction
+    assert np.abs(headings(None)).max() > 2.0  # the paper's: any direction
     with pytest.raises(ValueError, match="heading_spread"):
         VelocityControlEnv(VelocityControlConfig(heading_spread=4.0))
 
