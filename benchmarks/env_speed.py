@@ -117,7 +117,11 @@ def main() -> None:
             samples["ours"].append(stepping)
             samples["ours+resets"].append(total)
         medians = {k: statistics.median(v) for k, v in samples.items()}
-        results[policy] = medians
+        results[policy] = {
+            **medians,
+            "ratio_stepping": medians["ours"] / medians["stock"],
+            "ratio_with_resets": medians["ours+resets"] / medians["stock+resets"],
+        }
         print(f"actions: {policy}")
         print(f"  raw MuJoCo physics (6 mj_step/env step) {medians['raw']:8.0f} env steps/s")
         print(

@@ -8,6 +8,10 @@ during rollouts, PPO updates, evaluations, and inter-process communication.
 With subprocess environments the workers are sampled too (``--subprocesses``),
 so the shares are of all processes' samples together.
 
+The baseline is the simulator, sampled in the same run: each part is also given as a
+multiple of the simulator's samples, and the last line says how many times the physics'
+own cost the whole training takes (every layout pays the physics; the rest is overhead).
+
 Usage::
 
     python benchmarks/expert_profile.py --steps 40000 --n-envs 2 --in-process
@@ -24,10 +28,13 @@ import sys
 import tempfile
 from pathlib import Path
 
+SIMULATOR = "simulator (MuJoCo steps)"
+"""The baseline part: the physics, which every layout pays."""
+
 CATEGORIES: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("evaluation", ("evaluate_policy",)),
     ("PPO update", ("train (stable_baselines3/ppo",)),
-    ("simulator (MuJoCo steps)", ("control_step",)),
+    (SIMULATOR, ("control_step",)),
     ("environment: rewards, observations, resets", ("tasks/tracking", "tasks/observables", "tasks/simulation")),
     ("normalisation (VecNormalize)", ("vec_normalize.py", "running_mean_std.py")),
     ("policy during rollouts", ("policies.py", "torch/nn")),
@@ -68,6 +75,19 @@ def categorise(raw: Path) -> tuple[collections.Counter, int]:
     return shares, total
 
 
+def table(shares: collections.Counter, total: int) -> list[str]:
+    """The printed lines: each part's share of the samples and its multiple of the simulator's, then the total's."""
+    simulator = shares[SIMULATOR]
+    lines = []
+    for name, samples in shares.most_common():
+        against = f"{samples / simulator:8.2f} x simulator" if simulator else "        - x simulator"
+        lines.append(f"  {name:<46}{100 * samples / max(total, 1):6.1f} %{against}")
+    lines.append(
+        f"all samples / simulator samples = {total / simulator:.2f}x" if simulator else "no samples in the simulator"
+    )
+    return lines
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--steps", type=int, default=40_000, help="environment steps to train while sampling")
@@ -89,8 +109,7 @@ def main() -> None:
         shares, total = categorise(raw)
     layout = f"{args.n_envs} envs {'in-process' if args.in_process else 'in worker processes'}, "
     print(f"{layout}{args.torch_threads} torch thread(s), {args.steps} steps: {total} samples")
-    for name, samples in shares.most_common():
-        print(f"  {name:<46}{100 * samples / max(total, 1):6.1f} %")
+    print("\n".join(table(shares, total)))
 
 
 if __name__ == "__main__":

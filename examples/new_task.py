@@ -9,9 +9,9 @@ call makes it a task like the built-in ones (``tasks.make``, its Gymnasium id,
 ``transfer train --task``, ``record --task``), and one ``train_transfer`` call
 trains PPO in the decoder's latent space with resume and a pickle-free policy file.
 
-Run: python examples/new_task.py --decoder synthetic-v1   (the shipped decoder; or any decoder file)
-(about 4 minutes on 2 cores; it prints the score of the untrained policy and of the trained
-one; ``--steps 32768`` trains on, resuming in ``--out``).
+Run: python examples/new_task.py   (the shipped decoder synthetic-v3 around its latent prior; ``--decoder``
+takes any decoder file, ``--latent-prior`` a prior file of it). About 4 minutes on 2 cores; it prints
+the score of the untrained policy and of the trained one; ``--steps 32768`` trains on, resuming in ``--out``.
 """
 
 import argparse
@@ -22,7 +22,8 @@ import mujoco
 import numpy as np
 
 import tasks
-from hierarchy import LatentActionEnv, load_decoder
+from hierarchy import LatentActionEnv, load_decoder, load_latent_prior
+from hierarchy.latent_prior import shipped_priors
 from hierarchy.transfer import TransferConfig, evaluate_transfer, train_transfer
 from mocap_hierarchy.record import record
 from tasks.downstream.walker_task import WalkerTaskEnv
@@ -65,9 +66,13 @@ tasks.register("raise_hand", RaiseHandConfig, RaiseHand, "hold the left hand up 
 HOLD = 5  # low-level steps each latent is held for
 
 
-def untrained_score(decoder: str, episodes: int, max_steps: int) -> float:
-    """Reward per step of the decoder driven by z = 0: what a freshly initialised policy does."""
-    env = LatentActionEnv(tasks.make("raise_hand", max_steps=max_steps), load_decoder(decoder))
+def untrained_score(decoder: str, prior: str | None, episodes: int, max_steps: int) -> float:
+    """Reward per step of a zero action (the prior's mean latent, or z = 0): what an untrained policy does."""
+    env = LatentActionEnv(
+        tasks.make("raise_hand", max_steps=max_steps),
+        load_decoder(decoder),
+        prior=load_latent_prior(prior) if prior else None,
+    )
     total = steps = 0.0
     for episode in range(episodes):  # the same seeds as evaluate_transfer's episodes
         env.reset(seed=episode)
@@ -81,7 +86,8 @@ def untrained_score(decoder: str, episodes: int, max_steps: int) -> float:
 def main(argv: list[str] | None = None) -> float:
     """Trains a high-level policy for ``raise_hand``; returns its mean reward per step."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--decoder", default="synthetic-v1", help="a decoder file or a shipped decoder's name")
+    parser.add_argument("--decoder", default="synthetic-v3", help="a decoder file or a shipped decoder's name")
+    parser.add_argument("--latent-prior", help="a prior file of the decoder (default: the one shipped with it, if any)")
     parser.add_argument("--out", type=Path, default=Path("runs/raise_hand"), help="output folder (resumable)")
     parser.add_argument("--steps", type=int, default=16384, help="high-level steps (each holds a latent 5 steps)")
     parser.add_argument("--n-envs", type=int, default=2, help="environments, each in its own process")
@@ -102,8 +108,11 @@ def main(argv: list[str] | None = None) -> float:
         checkpoint_every=max(2048, args.steps // 4),
         device="cpu",
     )
-    baseline = untrained_score(args.decoder, episodes=10, max_steps=100)
-    policy = train_transfer("raise_hand", args.out, args.decoder, config, {"max_steps": 200})
+    # Actions are residuals around the latent the prior expects in each state: exploration starts from the
+    # experts' motions instead of from z = 0 (the recommended way to use a shipped decoder).
+    prior = args.latent_prior or (args.decoder if args.decoder in shipped_priors() else None)
+    baseline = untrained_score(args.decoder, prior, episodes=10, max_steps=100)
+    policy = train_transfer("raise_hand", args.out, args.decoder, config, {"max_steps": 200}, latent_prior=prior)
 
     # How well does it follow the command now? Reward per step over the same episodes as the baseline.
     result = evaluate_transfer(policy, episodes=10, max_steps=100)

@@ -178,7 +178,7 @@ def train_transfer(
         out: Output folder; an interrupted run in it is resumed.
         decoder: A decoder file or a shipped decoder's name (``synthetic-v1``); None trains
             the no-decoder baseline.
-        config: PPO settings (seed defaults).
+        config: PPO settings (defaults: the paper's Table 3).
         task_overrides: Config fields of a registered task to change.
         progress: Show a progress bar.
         task_name: Label recorded for a factory (default: its ``__name__``).

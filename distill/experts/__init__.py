@@ -1,4 +1,4 @@
-"""Snippet experts: settings, their directory (the paper's A.1), the frozen policy, PPO training, evaluation, fan-out."""
+"""Snippet experts: settings, their directory (the paper's A.1), frozen policy, PPO training, evaluation, fan-out."""
 
 from typing import TYPE_CHECKING
 
@@ -12,7 +12,7 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from distill.experts.loading import load_expert
     from distill.experts.policy import ExpertOutput, ExpertPolicy, ExpertSpec, policy_from_sb3
     from distill.experts.sb3_import import convert_sb3_expert
-    from distill.experts.training import ConfigMismatchError, TrainingResult, expert_jobs, train_expert
+    from distill.experts.training import ConfigMismatchError, TrainingResult, expert_jobs, train_expert, training_envs
 
 __all__ = [
     "ConfigMismatchError",
@@ -38,6 +38,7 @@ __all__ = [
     "run_jobs",
     "summarise",
     "train_expert",
+    "training_envs",
 ]
 
 __getattr__, __dir__ = lazy_exports(
@@ -66,5 +67,6 @@ __getattr__, __dir__ = lazy_exports(
         "run_jobs": "distill.experts.fanout",
         "summarise": "distill.experts.fanout",
         "train_expert": "distill.experts.training",
+        "training_envs": "distill.experts.training",
     },
 )

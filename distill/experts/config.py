@@ -94,7 +94,7 @@ class ExpertConfig:
             snippet (or, once that run has finished, its kept expert) this run continues with its
             own settings: the networks, the observation normaliser, the step count and the curve
             so far (empty: start from scratch). With a branch that changes nothing beside it, one
-            change can be measured against the same starting point (``benchmarks/expert_learning.py``).
+            change can be measured against the same starting point (``experiments/expert_learning.py``).
         branch_step: With ``branch_from``, start from that run's snapshot for this step
             (``snapshot_steps``) rather than its checkpoint or kept expert (0: not a snapshot).
     """
@@ -289,7 +289,7 @@ FAST_PROFILE_CHANGES: dict[str, Any] = {
     "checkpoint_every": 50_000,
 }
 """What ``--profile fast`` changes from the paper's settings: the values measured to learn fastest on a small CPU
-machine (``benchmarks/expert_learning.py``; the README's expert section has the curves and their commands)."""
+machine (``experiments/expert_learning.py``; the README's expert section has the curves and their commands)."""
 
 
 FAST_3M_SCHEDULES: dict[str, Any] = {
@@ -317,7 +317,7 @@ half the step size")."""
 
 
 def expert_profiles() -> dict[str, ExpertConfig]:
-    """Named starting points for expert training: ``paper`` (Table 1, B.1.2), ``fast``, ``fast-3m`` and ``fast-3m-wide``.
+    """Named starting points for expert training: ``paper`` (Table 1, B.1.2), ``fast``, ``fast-3m``, ``fast-3m-wide``.
 
     ``fast`` is the paper's settings with :data:`FAST_PROFILE_CHANGES`; ``fast-3m`` is
     ``fast`` with :data:`FAST_3M_SCHEDULES`; ``fast-3m-wide`` is ``fast-3m`` with
@@ -370,10 +370,10 @@ class BatchedExpertConfig:
         learning_rate: Adam step size (the start value when ``schedule`` is ``adaptive``).
         schedule: ``adaptive`` (rsl_rl: scale the step size to keep the KL near ``desired_kl``) or ``fixed``.
         desired_kl: Target KL divergence per update of the adaptive schedule.
-        gamma: Discount factor (seed).
-        gae_lambda: GAE parameter (seed).
-        clip_range: PPO clipping parameter (seed).
-        max_grad_norm: Gradient norm clipping value (seed).
+        gamma: Discount factor (the paper's).
+        gae_lambda: GAE parameter (the paper's).
+        clip_range: PPO clipping parameter (the paper's).
+        max_grad_norm: Gradient norm clipping value (the paper's).
         hidden_layers: Hidden sizes of the policy and value networks (tanh; seed).
         action_std: Fixed standard deviation of the Gaussian policy (seed: 0.1).
         residual_actions: Actions are offsets from the reference's next pose.

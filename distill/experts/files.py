@@ -187,8 +187,8 @@ class ExpertDir:
             if not path.is_file():
                 raise ExpertFilesError(
                     f"expert {self.root.name}: {path.relative_to(self.root)} is missing; an expert directory needs "
-                    "clip_info.json and eval_rsi/model/{best_model.zip,vecnormalize.pkl} (the paper's A.1). Train it with "
-                    f"`mocap-hierarchy expert train --snippet {self.root.name} --out {self.root.parent}`"
+                    "clip_info.json and eval_rsi/model/{best_model.zip,vecnormalize.pkl} (the paper's A.1). "
+                    f"Train it with `mocap-hierarchy expert train --snippet {self.root.name} --out {self.root.parent}`"
                 )
 
 

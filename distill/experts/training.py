@@ -366,7 +366,7 @@ def train_expert(
     write_json(expert.config, asdict(config))
     if config.torch_threads > 0:
         torch.set_num_threads(config.torch_threads)
-    vec_env = _vec_env(training_task((name,), clip_file, config), config)
+    vec_env = training_envs(training_task((name,), clip_file, config), config)
     model, state, continued = _resume_or_build(expert, vec_env, resume_state, config)
 
     trainer = _Trainer(name, expert, clip_file, config, progress)
@@ -408,8 +408,22 @@ def _prepare_directory(expert: ExpertDir, snippet_id: SnippetId, config: ExpertC
     return clip_file
 
 
-def _vec_env(tracking: TrackingConfig, config: ExpertConfig):
-    """``n_envs`` tracking environments, in worker processes when asked for."""
+def training_envs(tracking: TrackingConfig, config: ExpertConfig) -> DummyVecEnv | SubprocVecEnv:
+    """The vectorised tracking environments an expert trains in, as :func:`train_expert` builds them.
+
+    Environment ``i`` is reset with seed ``config.seed * 1000 + i``. Other learners
+    (an off-policy one, say) can train on exactly the task PPO's experts see.
+
+    Args:
+        tracking: The task, usually :func:`distill.experts.evaluation.training_task`'s.
+        config: Expert settings; ``n_envs`` (see :meth:`ExpertConfig.resolved_envs`),
+            ``subprocess_envs`` and ``seed`` are read.
+
+    Returns:
+        A stable-baselines3 ``SubprocVecEnv`` (one worker process per environment) when
+        ``config.subprocess_envs`` is set and there is more than one environment, else a
+        ``DummyVecEnv`` stepping them in this process. The caller closes it.
+    """
     n_envs = config.resolved_envs()
     factories: list[Callable[[], gym.Env]] = [
         functools.partial(_make_env, tracking, config.seed * 1000 + i) for i in range(n_envs)

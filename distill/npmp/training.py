@@ -53,8 +53,8 @@ def train_npmp(
     Args:
         data: A rollout dataset folder (or file, or list of files).
         out: Output folder; a rerun resumes the checkpoint there.
-        npmp: Architecture and objective (seed defaults).
-        trainer: Loop settings (seed defaults: Adam 5e-4, batch 256, clip 1).
+        npmp: Architecture and objective (defaults: the paper's).
+        trainer: Loop settings (defaults, the paper's: Adam 5e-4, batch 256, clip 1).
         sampler: Window settings; observations are always standardised.
         progress: Show progress bars.
     """

@@ -7,7 +7,7 @@ Stages:
    open-loop playback controller (a baseline, and the environment's speed);
 3. experts: train snippet experts for a few snippets (PPO, the paper's
    settings with a small budget; residual actions by default, which start at
-   the playback controller's level, see ``benchmarks/expert_learning.py``), as parallel jobs, and
+   the playback controller's level, see ``experiments/expert_learning.py``), as parallel jobs, and
    evaluate them like the playback rows;
 4. dataset: roll the experts out into the rollout dataset (the paper's A.2);
 5. distill: the multi-clip policy and its frozen decoder file (the paper's B.2's

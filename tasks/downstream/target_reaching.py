@@ -4,7 +4,7 @@
 position and the target it is heading for; :func:`summarise` turns episodes into
 the figures of :class:`TargetReachingSummary`: how long the walker stays up, how
 many metres it closes on its targets, how fast, whether it moves towards them, and
-what the task pays. ``benchmarks/target_reaching.py`` prints them for policy files.
+what the task pays. ``experiments/target_reaching.py`` prints them for policy files.
 """
 
 from __future__ import annotations

@@ -24,9 +24,9 @@ from distill.experts.training import (
     _resume_or_build,
     _Trainer,
     _training_fields,
-    _vec_env,
     keep_training,
     train_expert,
+    training_envs,
 )
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 
@@ -297,7 +297,7 @@ def test_a_branch_continues_another_runs_checkpoint_with_its_own_settings(
     source_weights = PPO.load(source.checkpoint.model, device="cpu").policy.state_dict()
     branch = dataclasses.replace(config, gamma=0.99, action_std=0.2, branch_from=str(tmp_path / "source"))
 
-    vec_env = _vec_env(training_task((snippet,), str(clip_library), branch), branch)
+    vec_env = training_envs(training_task((snippet,), str(clip_library), branch), branch)
     started = ExpertDir(tmp_path / "peek" / snippet)
     started.root.mkdir(parents=True)
     model, state, continued = _resume_or_build(started, vec_env, None, branch)
@@ -331,7 +331,7 @@ def test_a_branch_starts_with_its_noise_schedules_value_at_the_sources_step(
     branch = dataclasses.replace(
         config, action_std_steps=(256, 1024), later_action_stds=(0.2, 0.1), branch_from=str(tmp_path / "source")
     )
-    vec_env = _vec_env(training_task((snippet,), str(clip_library), branch), branch)
+    vec_env = training_envs(training_task((snippet,), str(clip_library), branch), branch)
     started = ExpertDir(tmp_path / "peek" / snippet)
     started.root.mkdir(parents=True)
     model, _, _ = _resume_or_build(started, vec_env, None, branch)
@@ -349,7 +349,7 @@ def test_a_branch_of_a_finished_run_starts_from_its_kept_expert(clip_library, tm
     branch = dataclasses.replace(
         tiny, total_steps=best["steps"] + 512, action_std=0.2, branch_from=str(trained_expert.parent)
     )
-    vec_env = _vec_env(training_task((snippet,), str(clip_library), branch), branch)
+    vec_env = training_envs(training_task((snippet,), str(clip_library), branch), branch)
     started = ExpertDir(tmp_path / "peek" / snippet)
     started.root.mkdir(parents=True)
     model, state, continued = _resume_or_build(started, vec_env, None, branch)
@@ -398,7 +398,7 @@ def test_snapshots_are_kept_after_training_without_changing_it_and_a_branch_star
     branch = dataclasses.replace(
         config, total_steps=1536, snapshot_steps=(), branch_from=str(tmp_path / "source"), branch_step=500
     )
-    vec_env = _vec_env(training_task((snippet,), str(clip_library), branch), branch)
+    vec_env = training_envs(training_task((snippet,), str(clip_library), branch), branch)
     started = ExpertDir(tmp_path / "peek" / snippet)
     started.root.mkdir(parents=True)
     model, state, continued = _resume_or_build(started, vec_env, None, branch)

@@ -1,0 +1,405 @@
+"""Pages of the documentation that are generated from the code, never written by hand.
+
+* ``reference/cli.md``: every ``mocap-hierarchy`` command, from the real argparse parsers;
+* ``reference/configs.md``: every settings dataclass, field by field (type, default, meaning from the
+  class's ``Attributes:`` docstring section);
+* ``models/<name>.md``: one model card per shipped decoder and latent prior, from the JSON card and the
+  description stored inside the file, so the page and the file cannot disagree.
+
+Sphinx writes them before reading the sources (``builder-inited``); the files are ignored by git.
+``python docs/_ext/generated_pages.py`` writes them without building the site.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import importlib
+import inspect
+import json
+import os
+import re
+import sys
+from pathlib import Path
+from typing import Any
+
+DOCS = Path(__file__).resolve().parents[1]
+
+CONFIG_CLASSES = (
+    "tasks.tracking.env.TrackingConfig",
+    "tasks.downstream.go_to_target.GoToTargetConfig",
+    "tasks.downstream.velocity_control.VelocityControlConfig",
+    "tasks.downstream.motion_completion.MotionCompletionConfig",
+    "distill.experts.config.ExpertConfig",
+    "distill.experts.config.BatchedExpertConfig",
+    "distill.experts.config.EvaluationConfig",
+    "distill.dataset.config.RolloutConfig",
+    "distill.dataset.config.SamplerConfig",
+    "distill.trainer_config.TrainerConfig",
+    "distill.npmp.config.NpmpConfig",
+    "distill.npmp.config.PolicyEvaluationConfig",
+    "distill.npmp.config.LatentPriorConfig",
+    "distill.gpt.config.GptConfig",
+    "distill.gpt.config.CompletionConfig",
+    "hierarchy.transfer_config.TransferConfig",
+    "foundation.sb3.PpoSettings",
+    "mocap_hierarchy.quickstart.config.QuickstartConfig",
+    "mocap_hierarchy.download.catalogue.HubSettings",
+)
+"""The settings dataclasses the configs reference lists, in the order of the pipeline."""
+
+HELP_WIDTH = 100
+"""Terminal width the command-line reference is formatted for (fixed, so the page does not depend on the machine)."""
+
+
+# --------------------------------------------------------------------------------------------- command line
+
+
+def command_parsers() -> list[tuple[str, argparse.ArgumentParser]]:
+    """``(command line, parser)`` of the program and every subcommand, depth first, lazily built ones included."""
+    from mocap_hierarchy.cli import build_parser
+
+    found: list[tuple[str, argparse.ArgumentParser]] = []
+
+    def visit(prefix: str, parser: argparse.ArgumentParser) -> None:
+        found.append((prefix, parser))
+        for action in parser._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                build_all = getattr(action, "build_all", None)
+                children = build_all() if build_all else dict(action.choices)
+                for name, child in children.items():
+                    visit(f"{prefix} {name}", child)
+
+    visit("mocap-hierarchy", build_parser())
+    return found
+
+
+def cli_page() -> str:
+    """The command-line reference: each command's ``--help``, exactly as the program prints it."""
+    os.environ["COLUMNS"] = str(HELP_WIDTH)
+    lines = [
+        "# Command line",
+        "",
+        "Every `mocap-hierarchy` command and its flags, generated from the program's own parsers when the",
+        "site is built (what `mocap-hierarchy COMMAND --help` prints). The tutorials and guides explain when to",
+        "use each; this page is the complete list.",
+        "",
+    ]
+    for command, parser in command_parsers():
+        depth = min(command.count(" ") + 2, 4)
+        lines += [f"{'#' * depth} `{command}`", ""]
+        description = (parser.description or "").strip()
+        if description and command != "mocap-hierarchy":
+            lines += [description, ""]
+        parser.prog = command
+        lines += ["```text", parser.format_help().rstrip(), "```", ""]
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------- configs
+
+
+def attribute_docs(cls: type) -> dict[str, str]:
+    """``{field: meaning}`` from the Google-style ``Attributes:`` section of ``cls``'s docstring."""
+    doc = inspect.getdoc(cls) or ""
+    match = re.search(r"^Attributes:\n((?:[ \t]+.*\n?|\n)*)", doc, flags=re.M)
+    if not match:
+        return {}
+    meanings: dict[str, str] = {}
+    current = None
+    for line in match.group(1).splitlines():
+        item = re.match(r"^ {4}(\w+)(?: \([^)]*\))?: ?(.*)$", line)
+        if item:
+            current = item.group(1)
+            meanings[current] = item.group(2).strip()
+        elif current and line.strip():
+            meanings[current] += " " + line.strip()
+    return meanings
+
+
+def _default(field: dataclasses.Field) -> str:
+    if field.default is not dataclasses.MISSING:
+        value = field.default
+    elif field.default_factory is not dataclasses.MISSING:
+        value = field.default_factory()
+    else:
+        return "required"
+    if callable(value) and not isinstance(value, type):
+        return f"`{getattr(value, '__name__', repr(value))}`"
+    return f"`{value!r}`"
+
+
+def markdown_of_rst(text: str) -> str:
+    """Docstring markup in Markdown: ````x```` and ``:role:`x``` become ```x```."""
+    text = re.sub(r":\w+:`~?([^`]+)`", r"`\1`", text)
+    return re.sub(r"``([^`]+)``", r"`\1`", text)
+
+
+def _cell(text: str) -> str:
+    return markdown_of_rst(text).replace("|", "\\|").replace("\n", " ")
+
+
+def configs_page() -> str:
+    """The configs reference: every field of every settings dataclass with its type, default and meaning.
+
+    Raises:
+        ValueError: A field whose meaning the class's docstring does not give.
+    """
+    lines = [
+        "# Configs",
+        "",
+        "Every setting of the library is a field of a frozen dataclass; the command line builds its flags from",
+        "them and Python code passes them as arguments. Defaults are the paper's (MoCapAct) where the paper",
+        "gives a value. This page is generated from the classes when the site is built.",
+        "",
+    ]
+    undocumented = []
+    for dotted in CONFIG_CLASSES:
+        module_name, name = dotted.rsplit(".", 1)
+        cls = getattr(importlib.import_module(module_name), name)
+        meanings = attribute_docs(cls)
+        summary = markdown_of_rst((inspect.getdoc(cls) or "").split("\n\n")[0].replace("\n", " "))
+        lines += [f"## `{name}`", "", f"`{dotted}`: {summary}", "", "| field | type | default | meaning |"]
+        lines.append("|---|---|---|---|")
+        for field in dataclasses.fields(cls):
+            if field.name not in meanings:
+                undocumented.append(f"{dotted}.{field.name}")
+            kind = field.type if isinstance(field.type, str) else getattr(field.type, "__name__", str(field.type))
+            lines.append(
+                f"| `{field.name}` | `{_cell(str(kind))}` | {_cell(_default(field))} | "
+                f"{_cell(meanings.get(field.name, ''))} |"
+            )
+        lines.append("")
+    if undocumented:
+        raise ValueError(f"fields without a meaning in their class's Attributes section: {', '.join(undocumented)}")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------------------------- model cards
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, list | tuple):
+        return ", ".join(str(item) for item in value)
+    if isinstance(value, dict):
+        return ", ".join(f"{key}: {_text(item)}" for key, item in value.items())
+    return str(value)
+
+
+def _number(value: float | None) -> str:
+    return "-" if value is None else f"{value:.3f}"
+
+
+def _scores(card: dict[str, Any]) -> list[str]:
+    experts, policy = card.get("experts", {}), card.get("multi_clip", {})
+    if not experts:
+        return ["No scores are recorded in this file."]
+    lines = [
+        card.get("protocol", ""),
+        "",
+        "| snippet | expert reward | expert length | multi-clip reward | multi-clip length | fraction (reward) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for snippet, row in experts.items():
+        other = policy.get("snippets", {}).get(snippet, {})
+        reward = other.get("normalized_reward")
+        fraction = reward / row["normalized_reward"] if reward is not None and row["normalized_reward"] else None
+        lines.append(
+            f"| {snippet} | {row['normalized_reward']:.3f} | {row['normalized_length']:.3f} | {_number(reward)} | "
+            f"{_number(other.get('normalized_length'))} | {_number(fraction)} |"
+        )
+    fraction = policy.get("fraction", {})
+    if fraction:
+        lines += [
+            "",
+            f"Multi-clip policy as a fraction of its experts (mean over {fraction.get('snippets')} snippets): reward "
+            f"**{_number(fraction.get('normalized_reward'))}**, length **{_number(fraction.get('normalized_length'))}**.",
+        ]
+    return lines
+
+
+def decoder_page(name: str, path: Path, prior_path: Path | None) -> str:
+    """The model card of shipped decoder ``name``, from the card and description inside its file."""
+    from hierarchy.decoder import load_decoder
+    from hierarchy.model_card import card_of
+
+    decoder = load_decoder(path)
+    spec = decoder.spec
+    card = card_of(decoder) or {}
+    provenance = {key: value for key, value in spec.provenance.items() if key != "model_card"}
+    observations = ", ".join(f"`{key}` ({size})" for key, size in spec.observation_sizes.items())
+    prior_line = (
+        f"its latent prior: `{prior_path.relative_to(DOCS.parent)}` ({prior_path.stat().st_size / 1e6:.2f} MB, "
+        f"[card]({name}-prior.md))"
+        if prior_path
+        else "no latent prior ships with it"
+    )
+    lines = [
+        f"# Decoder `{name}`",
+        "",
+        "Generated from the model card stored inside the file "
+        f"(`mocap-hierarchy decoder card {name}` prints the same card).",
+        "",
+        "## Overview",
+        "",
+        card.get("summary", "A frozen low-level decoder."),
+        "",
+        "## Intended use",
+        "",
+        f"A frozen low-level controller for the dm_control CMU humanoid (`{spec.walker}`): a high-level policy "
+        f"chooses a latent `z` every control step and the decoder turns it, with the humanoid's proprioception, into "
+        f"joint position targets. Load it with `load_decoder(\"{name}\")` or `--decoder {name}` on `transfer train`; "
+        "see [a pretrained decoder in your own task](../tutorials/pretrained-decoder.md). It was distilled from "
+        "experts on the built-in synthetic clips, not on motion capture of people: use it to study hierarchical "
+        "control and transfer, not as a model of human motion.",
+        "",
+        "## Training data and budgets",
+        "",
+    ]
+    lines += [f"- **{key}**: {_text(value)}" for key, value in card.get("data", {}).items()]
+    lines += [f"- **{key}**: {_text(value)}" for key, value in card.get("budgets", {}).items()]
+    lines += [
+        "",
+        "## Inputs and outputs",
+        "",
+        f"- **observation** ({spec.observation_size} values, in this order): {observations}",
+        f"- **latent** `z`: {spec.latent_size} values within ±{spec.latent_bound:g}",
+        f"- **action**: {spec.action_size} joint position targets in [{spec.action_low:g}, {spec.action_high:g}]",
+        f"- **walker**: `{spec.walker}`",
+        "- the observation normaliser is stored in the file and applied by the decoder itself",
+        "",
+        "## Artifacts",
+        "",
+        f"- `{path.relative_to(DOCS.parent)}`: {path.stat().st_size / 1e6:.2f} MB, SHA-256 `{_sha256(path)}`",
+        f"- weights' behaviour hash (unchanged by re-packaging the card): `{decoder.behaviour_sha256()}`",
+        f"- {prior_line}",
+        "- format: safetensors with a JSON description, no pickle "
+        "([the decoder file format](../reference/formats/decoder.md))",
+        "",
+        "## Measured scores",
+        "",
+        *_scores(card),
+        "",
+        "## Limitations",
+        "",
+        *([f"- {note}" for note in card.get("notes", [])] or ["- None recorded in the card."]),
+        "",
+        "## Provenance",
+        "",
+        *[f"- **{key}**: {_text(value)}" for key, value in provenance.items()],
+        "",
+    ]
+    if card.get("commands"):
+        lines += ["Commands that rebuilt it, in order:", "", "```bash", *card["commands"], "```", ""]
+    return "\n".join(lines)
+
+
+def prior_page(name: str, path: Path) -> str:
+    """The model card of the latent prior shipped with decoder ``name``, from the description inside its file."""
+    from hierarchy.latent_prior import load_latent_prior
+
+    prior = load_latent_prior(path)
+    spec = prior.spec
+    provenance = dict(spec.provenance)
+    lines = [
+        f"# Latent prior of `{name}`",
+        "",
+        "Generated from the description stored inside the file.",
+        "",
+        "## Overview",
+        "",
+        f"A state-conditioned Gaussian over the latent `z` of decoder [`{name}`]({name}.md): given the humanoid's "
+        "proprioception, the latent its multi-clip policy would choose. A high-level policy acting around it "
+        "(`latent_prior=` in Python, `--latent-prior` on the command line) starts from the experts' motions "
+        "instead of from `z = 0`.",
+        "",
+        "## Intended use",
+        "",
+        f"Only with decoder `{name}`: the file stores the behaviour hash of the decoder it was fitted for, and "
+        "loading it beside another decoder is refused. See [the latent prior guide](../guides/latent-prior.md).",
+        "",
+        "## Training data and budgets",
+        "",
+        *[f"- **{key}**: {_text(value)}" for key, value in provenance.items()],
+        "",
+        "## Inputs and outputs",
+        "",
+        f"- **observation**: {spec.observation_size} values, the decoder's observation keys in its order",
+        f"- **output**: the mean of `z` ({spec.latent_size} values)",
+        f"- **network**: MLP {' x '.join(map(str, spec.hidden_layers))}, {spec.activation}",
+        "",
+        "## Artifacts",
+        "",
+        f"- `{path.relative_to(DOCS.parent)}`: {path.stat().st_size / 1e6:.2f} MB, SHA-256 `{_sha256(path)}`",
+        f"- fitted for the decoder whose behaviour hash is `{spec.decoder_behaviour_sha256}`",
+        "",
+        "## Measured scores",
+        "",
+        "The fit's own figures are under *Training data and budgets*; what acting around it does to transfer is "
+        "measured on the [experiment pages](../experiments/index.md).",
+        "",
+        "## Limitations",
+        "",
+        "- Fitted to the multi-clip policy's latents on its training snippets; away from those states its mean is "
+        "an extrapolation.",
+        "",
+        "## Provenance",
+        "",
+        "- fitted with `mocap-hierarchy decoder fit-prior` (the command is in the decoder's card)",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def model_pages() -> dict[str, str]:
+    """``{file name: page}`` of every shipped decoder and prior."""
+    from hierarchy.latent_prior import shipped_priors
+    from hierarchy.pretrained import pretrained_decoders
+
+    priors = shipped_priors()
+    pages = {}
+    for name, path in pretrained_decoders().items():
+        pages[f"{name}.md"] = decoder_page(name, path, priors.get(name))
+        if name in priors:
+            pages[f"{name}-prior.md"] = prior_page(name, priors[name])
+    return pages
+
+
+# --------------------------------------------------------------------------------------------- writing
+
+
+def generated_pages() -> dict[Path, str]:
+    """Every generated page by its path under ``docs/``."""
+    pages = {DOCS / "reference" / "cli.md": cli_page(), DOCS / "reference" / "configs.md": configs_page()}
+    pages.update({DOCS / "models" / name: text for name, text in model_pages().items()})
+    return pages
+
+
+def write_generated_pages() -> list[Path]:
+    """Writes the generated pages whose text changed (so an unchanged page is not rebuilt); returns them all."""
+    pages = generated_pages()
+    for path, text in pages.items():
+        if not path.is_file() or path.read_text() != text:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+    return list(pages)
+
+
+def setup(app: Any) -> dict[str, Any]:
+    """Sphinx hook: write the generated pages before the sources are read."""
+    app.connect("builder-inited", lambda _app: write_generated_pages())
+    return {"parallel_read_safe": True, "parallel_write_safe": True}
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(DOCS.parent))
+    for page in write_generated_pages():
+        print(page.relative_to(DOCS.parent))
+    print(json.dumps({"written": True}))

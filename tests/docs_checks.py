@@ -1,0 +1,183 @@
+"""Checks that keep the README and the documentation site true: links, snippets, command lines, quoted figures.
+
+Each check takes Markdown files and returns the problems it found (empty when all is well), so the tests
+can run it on the real pages and on pages with a planted break. Used by ``tests/test_docs.py``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import contextlib
+import io
+import json
+import re
+import shlex
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = ROOT / "docs"
+
+FENCE = re.compile(r"^(```+|~~~+)([^\n]*)\n(.*?)^\1[ \t]*$", flags=re.M | re.S)
+LINK = re.compile(r"!?\[(?:[^\[\]]|\[[^\]]*\])*\]\(([^()\s]+)(?:\s+\"[^\"]*\")?\)")
+HEADING = re.compile(r"^(#{1,6})[ \t]+(.+?)[ \t]*#*$", flags=re.M)
+VALUE_SPAN = re.compile(r"<!-- value: (\S+) (\S+) -->(.*?)<!-- /value -->")
+
+
+def markdown_files() -> list[Path]:
+    """README.md and every Markdown page of ``docs/`` (generated pages too, once written)."""
+    pages = [path for path in sorted(DOCS.rglob("*.md")) if "_build" not in path.parts]
+    return [ROOT / "README.md", *pages]
+
+
+def code_blocks(text: str, language: str | None = None) -> list[str]:
+    """The fenced code blocks of ``text`` (of one ``language`` when given)."""
+    return [body for _, info, body in FENCE.findall(text) if language is None or info.strip() == language]
+
+
+def prose(text: str) -> str:
+    """``text`` without fenced code blocks, inline code or HTML comments (where links are not links)."""
+    text = FENCE.sub("", text)
+    text = re.sub(r"<!--.*?-->", "", text, flags=re.S)
+    return re.sub(r"(`+)[^`\n]*?\1", "", text)
+
+
+def slug(heading: str) -> str:
+    """The anchor GitHub and MyST give a heading: lower case, punctuation dropped, spaces as hyphens."""
+    heading = re.sub(r"\[([^\]]*)\]\([^)]*\)", r"\1", heading)  # a link in a heading anchors on its text
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def anchors(text: str) -> set[str]:
+    """Every heading anchor of a page, with GitHub's ``-1``, ``-2`` suffixes for repeated headings."""
+    seen: dict[str, int] = {}
+    found = set()
+    for _, heading in HEADING.findall(FENCE.sub("", text)):
+        base = slug(heading)
+        count = seen.get(base, 0)
+        found.add(base if count == 0 else f"{base}-{count}")
+        seen[base] = count + 1
+    return found
+
+
+def check_links(files: Iterable[Path]) -> list[str]:
+    """Every relative link and image resolves to a file, and every ``#anchor`` to a heading of its page."""
+    problems = []
+    for path in files:
+        text = path.read_text()
+        for target in LINK.findall(prose(text)):
+            if re.match(r"^[a-z][a-z0-9+.-]*:", target):  # https:, mailto:: not checked offline
+                continue
+            file_part, _, anchor = target.partition("#")
+            destination = (path.parent / file_part).resolve() if file_part else path
+            where = f"{path.relative_to(ROOT)}: ({target})"
+            if not destination.exists():
+                problems.append(f"{where}: no such file {destination}")
+            elif anchor:
+                if destination.suffix != ".md":
+                    problems.append(f"{where}: an anchor into a file that is not Markdown")
+                elif anchor not in anchors(destination.read_text()):
+                    problems.append(f"{where}: no heading with anchor #{anchor} in {destination.name}")
+    return problems
+
+
+def python_imports(files: Iterable[Path]) -> list[str]:
+    """Every import statement of the ``python`` blocks (a block that does not parse is reported as one)."""
+    statements = []
+    for path in files:
+        for block in code_blocks(path.read_text(), "python"):
+            try:
+                tree = ast.parse(block)
+            except SyntaxError as error:
+                statements.append(f"raise SyntaxError({f'{path.name}: {error}'!r})")
+                continue
+            statements += [ast.unparse(node) for node in ast.walk(tree) if isinstance(node, ast.Import | ast.ImportFrom)]
+    return statements
+
+
+def command_lines(files: Iterable[Path], program: str = "mocap-hierarchy") -> list[tuple[Path, str]]:
+    """Every ``program`` invocation of the ``bash`` blocks, continuation lines joined, ``# comments`` dropped."""
+    found = []
+    for path in files:
+        for block in code_blocks(path.read_text(), "bash"):
+            for line in re.sub(r"\\\n\s*", " ", block).splitlines():
+                for part in re.split(r"&&|\|\||;|\|", line.split(" #")[0]):
+                    words = part.strip().split()
+                    while words and ("=" in words[0] and not words[0].startswith("-")):  # VAR=value prefixes
+                        words.pop(0)
+                    if words and words[0] == program:
+                        found.append((path, " ".join(words)))
+    return found
+
+
+def optional_groups_removed(line: str) -> str:
+    """A synopsis line without its ``[--flag VALUE]`` groups and ``...`` (the README's usage notation)."""
+    line = re.sub(r"\s\[[^\[\]]*\]", "", line)
+    return re.sub(r"\s\.\.\.(?=\s|$)", "", line)
+
+
+def check_command_line(parser: argparse.ArgumentParser, line: str) -> str | None:
+    """None when ``line`` parses against ``parser``, else argparse's complaint."""
+    words = shlex.split(optional_groups_removed(line), comments=True)[1:]
+    words = [re.sub(r"\{[^{}]*\}", "0", word) for word in words]  # brace expansions such as seed{0,1,2}
+    if "-h" in words or "--help" in words:
+        words = [word for word in words if word not in ("-h", "--help")]
+        if not words:
+            return None
+    stderr = io.StringIO()
+    try:
+        with contextlib.redirect_stderr(stderr), contextlib.redirect_stdout(io.StringIO()):
+            parser.parse_args(words)
+    except SystemExit as error:
+        if error.code not in (0, None):
+            return stderr.getvalue().strip().splitlines()[-1] if stderr.getvalue().strip() else f"exit {error.code}"
+    return None
+
+
+def check_command_lines(files: Iterable[Path]) -> list[str]:
+    """Every ``mocap-hierarchy`` line of the ``bash`` blocks parses against the real parsers."""
+    from mocap_hierarchy.cli import build_parser
+
+    problems = []
+    for path, line in command_lines(files):
+        complaint = check_command_line(build_parser(), line)
+        if complaint:
+            problems.append(f"{path.relative_to(ROOT)}: `{line}`: {complaint}")
+    return problems
+
+
+def json_source(path: Path) -> Any:
+    """The JSON a quoted figure comes from: a ``.json`` file, or the model card inside a decoder file."""
+    if path.suffix == ".safetensors":
+        from hierarchy.decoder import load_decoder
+        from hierarchy.model_card import card_of
+
+        return {"card": card_of(load_decoder(path))}
+    return json.loads(path.read_text())
+
+
+def lookup(record: Any, key: str) -> Any:
+    """``record``'s value at a dotted key path (list items by index; a key may contain ``/``)."""
+    for part in key.split("."):
+        record = record[int(part)] if isinstance(record, list) else record[part]
+    return record
+
+
+def check_quoted_values(files: Iterable[Path]) -> list[str]:
+    """Every ``<!-- value: FILE KEY -->TEXT<!-- /value -->`` span shows FILE's value at KEY, rounded as written."""
+    problems = []
+    for path in files:
+        for source, key, shown in VALUE_SPAN.findall(path.read_text()):
+            where = f"{path.relative_to(ROOT)}: {source} {key}"
+            try:
+                value = lookup(json_source(ROOT / source), key)
+            except (OSError, KeyError, IndexError, ValueError) as error:
+                problems.append(f"{where}: cannot be read ({error!r})")
+                continue
+            decimals = len(shown.split(".")[1]) if "." in shown else 0
+            expected = f"{float(value):,.{decimals}f}" if "," in shown else f"{float(value):.{decimals}f}"
+            if shown != expected:
+                problems.append(f"{where}: the page shows {shown}, the file holds {value} ({expected})")
+    return problems

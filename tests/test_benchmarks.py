@@ -1,0 +1,45 @@
+"""The scripts in benchmarks/: what they measure, and the ratio each prints against its baseline."""
+
+import collections
+import importlib.util
+from pathlib import Path
+
+import pytest
+
+from distill.experts.config import expert_profiles
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+def load_script(name: str):
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_throughput_benchmark_measures_profiles_as_trained_with_evaluations_and_checkpoints_off():
+    throughput = load_script("expert_throughput")
+    configs = throughput.profile_configs(["fast-3m", "fast-3m-wide"])
+    assert list(configs) == ["fast-3m", "fast-3m-wide"]
+    for name, config in configs.items():
+        profile = expert_profiles()[name]
+        assert config.hidden_layers == profile.hidden_layers
+        assert config.learning_rates == profile.learning_rates
+        assert (config.n_envs, config.subprocess_envs) == (profile.n_envs, profile.subprocess_envs)
+        assert config.eval_every > 10**9 and config.checkpoint_every > 10**9
+        assert not config.eval_at_start and config.final_eval_episodes == 0
+    assert configs["fast-3m-wide"].hidden_layers == (512, 512)
+    with pytest.raises(SystemExit, match="unknown profile"):
+        throughput.profile_configs(["fast-3m", "fastest"])
+
+
+def test_the_profile_gives_each_part_as_a_share_and_against_the_simulator():
+    profile = load_script("expert_profile")
+    shares = collections.Counter({profile.SIMULATOR: 40, "PPO update": 20, "other (waiting, Python, start-up)": 40})
+    lines = profile.table(shares, total=100)
+    assert lines[0].split() == [*profile.SIMULATOR.split(), "40.0", "%", "1.00", "x", "simulator"]
+    assert lines[1].split()[-4:] == ["%", "1.00", "x", "simulator"]  # the other 40 %, as much as the physics
+    assert lines[2].split() == ["PPO", "update", "20.0", "%", "0.50", "x", "simulator"]
+    assert lines[-1] == "all samples / simulator samples = 2.50x"

@@ -1,0 +1,170 @@
+"""The README and the documentation site stay true: they build, link, import, parse and quote what was measured.
+
+Every check also runs on a page with a planted break, so a check that stopped looking would fail here.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests import docs_checks
+from tests.docs_checks import DOCS, ROOT
+
+README = ROOT / "README.md"
+sys.path.insert(0, str(DOCS / "_ext"))
+import generated_pages  # noqa: E402  (docs/_ext is not a package)
+
+
+@pytest.fixture(scope="module")
+def pages() -> list[Path]:
+    """README.md and every page of the site, the generated ones written first."""
+    generated_pages.write_generated_pages()
+    return docs_checks.markdown_files()
+
+
+# ------------------------------------------------------------------------------------------------ the README
+
+
+def test_readme_is_short_and_opens_with_the_two_commands():
+    lines = README.read_text().splitlines()
+    assert len(lines) <= 250
+    head = "\n".join(lines[:40])
+    ci_command = (ROOT / ".ci" / "run").read_text().strip().splitlines()[-1]
+    assert ci_command in head  # the test command, exactly as CI runs it
+    assert re.search(r"pip install -c requirements\.lock -e \. && mocap-hierarchy quickstart", head)
+
+
+def test_readme_timings_are_the_measured_ones():
+    """Every timing span in the README equals docs/readme_numbers.json (tools/readme_numbers.py writes both)."""
+    record = json.loads((DOCS / "readme_numbers.json").read_text())
+    numbers = record["numbers"]
+    spans = re.findall(r"<!-- measured:(\w+) -->(.*?)<!-- /measured -->", README.read_text())
+    assert {key for key, _ in spans} == set(numbers)
+    assert {"quickstart_minutes", "tests_minutes"} <= set(numbers)
+    for key, text in spans:
+        assert text == (f"{numbers[key]:.0f}" if key.endswith("_seconds") else f"{numbers[key]:.1f}"), key
+    assert record["machine"]["cores"] >= 1 and record["commit"]
+    known = subprocess.run(
+        ["git", "cat-file", "-e", record["commit"].removesuffix("+changes")], cwd=ROOT, capture_output=True
+    )
+    assert known.returncode == 0 or not (ROOT / ".git").exists(), f"commit {record['commit']} is not in this history"
+
+
+# ------------------------------------------------------------------------------------------------ the checks
+
+
+def test_every_link_image_and_anchor_resolves(pages):
+    assert len(pages) >= 40
+    assert docs_checks.check_links(pages) == []
+
+
+def test_every_python_import_in_the_docs_works(pages):
+    statements = docs_checks.python_imports(pages)
+    assert "import tasks" in statements and any("train_transfer" in s for s in statements)
+    result = subprocess.run([sys.executable, "-c", "\n".join(statements)], capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode == 0, result.stderr[-2000:]
+
+
+def test_every_command_line_in_the_docs_parses(pages):
+    lines = docs_checks.command_lines(pages)
+    assert len(lines) >= 30
+    assert docs_checks.check_command_lines(pages) == []
+
+
+def test_quoted_figures_are_read_from_the_json_their_commands_wrote(pages):
+    results = DOCS / "results.md"
+    assert len(docs_checks.VALUE_SPAN.findall(results.read_text())) >= 10
+    assert docs_checks.check_quoted_values(pages) == []
+
+
+def test_user_facing_text_calls_the_paper_the_paper(pages):
+    """'seed' means a random seed only; no page speaks of sessions or issues (words of the development log)."""
+    pattern = re.compile(r"\bthe seed'?s?\b(?![- ]mean)|\bseed (?:Table|[AB]\.\d)|\bsessions?\b|\bthe issue'?s?\b", re.I)
+    hits = [f"{page.relative_to(ROOT)}: {m.group(0)}" for page in pages for m in pattern.finditer(page.read_text())]
+    assert hits == []
+
+
+@pytest.mark.filterwarnings("ignore")
+def test_the_site_builds_with_warnings_as_errors(tmp_path):
+    result = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", str(DOCS), str(tmp_path / "html")],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+    )
+    assert result.returncode == 0, result.stderr[-4000:]
+    built = (tmp_path / "html" / "reference" / "cli.html").read_text()
+    assert "mocap-hierarchy expert train" in built and "--profile" in built  # generated from the parsers
+
+
+# ------------------------------------------------------------------------------------------------ planted breaks
+
+
+def planted(tmp_path: Path, text: str) -> Path:
+    page = tmp_path / "page.md"
+    page.write_text(text)
+    (tmp_path / "other.md").write_text("# Other\n\n## A heading\n")
+    return page
+
+
+def test_a_dead_link_a_missing_anchor_and_a_missing_image_are_found(tmp_path, monkeypatch):
+    monkeypatch.setattr(docs_checks, "ROOT", tmp_path)
+    page = planted(
+        tmp_path,
+        "# Page\n\n[ok](other.md#a-heading) [in page](#page) [dead](missing.md) [anchor](other.md#no-such)\n"
+        "![gone](figures/none.png)\n\n```bash\n[not a link](nowhere.md)\n```\n",
+    )
+    problems = docs_checks.check_links([page])
+    assert len(problems) == 3
+    assert "missing.md" in problems[0] and "#no-such" in problems[1] and "none.png" in problems[2]
+
+
+def test_a_snippet_importing_a_missing_name_fails():
+    statements = ["from hierarchy import load_decoder", "from hierarchy import no_such_name"]
+    result = subprocess.run([sys.executable, "-c", "\n".join(statements)], capture_output=True, text=True, cwd=ROOT)
+    assert result.returncode != 0 and "no_such_name" in result.stderr
+
+
+def test_python_imports_are_collected_from_python_blocks_only(tmp_path):
+    page = planted(tmp_path, "# P\n\n```python\nimport tasks\nfrom hierarchy import x\n```\n\n```text\nimport os\n```\n")
+    assert docs_checks.python_imports([page]) == ["import tasks", "from hierarchy import x"]
+
+
+def test_a_command_line_with_an_unknown_flag_is_refused(tmp_path, monkeypatch):
+    monkeypatch.setattr(docs_checks, "ROOT", tmp_path)
+    page = planted(
+        tmp_path,
+        "# P\n\n```bash\nmocap-hierarchy expert train --snippet S --out x [--steps N]\n"
+        "OMP_NUM_THREADS=1 mocap-hierarchy transfer train --task velocity_control --out r \\\n    --no-such-flag 3\n"
+        "mocap-hierarchy expert eval x --episodes 10  # a comment --bogus\n```\n",
+    )
+    assert len(docs_checks.command_lines([page])) == 3
+    problems = docs_checks.check_command_lines([page])
+    assert len(problems) == 1 and "--no-such-flag" in problems[0]
+
+
+def test_a_quoted_figure_that_differs_from_its_json_is_found(tmp_path, monkeypatch):
+    monkeypatch.setattr(docs_checks, "ROOT", tmp_path)
+    (tmp_path / "r.json").write_text(json.dumps({"a": {"b": [0.12345, 2.0]}}))
+    good = "<!-- value: r.json a.b.0 -->0.123<!-- /value -->"
+    bad = "<!-- value: r.json a.b.1 -->2.1<!-- /value --> <!-- value: r.json a.c -->1<!-- /value -->"
+    page = planted(tmp_path, f"# P\n\n{good} {bad}\n")
+    problems = docs_checks.check_quoted_values([page])
+    assert len(problems) == 2 and "shows 2.1" in problems[0] and "cannot be read" in problems[1]
+
+
+def test_slugs_follow_github_and_repeat_with_suffixes():
+    assert docs_checks.slug("Acting around a latent prior (`decoder fit-prior`, `--latent-prior`)") == (
+        "acting-around-a-latent-prior-decoder-fit-prior---latent-prior"
+    )
+    assert docs_checks.anchors("# A\n\n## Setup\n\n## Setup\n\n```bash\n# not a heading\n```\n") == {
+        "a",
+        "setup",
+        "setup-1",
+    }
