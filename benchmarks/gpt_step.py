@@ -33,7 +33,7 @@ from distill.gpt.model import GptConfig, GptSpec, MotionGpt
 from tasks.observables import OBSERVABLE_SETS, observation_sizes
 
 
-def seed_sized_gpt(device: str) -> MotionGpt:
+def paper_sized_gpt(device: str) -> MotionGpt:
     torch.manual_seed(0)
     sizes = observation_sizes(OBSERVABLE_SETS["gpt"])
     size = sum(sizes.values())
@@ -59,7 +59,7 @@ def main() -> None:
     parser.add_argument("--tolerance", type=float, default=1e-5)
     args = parser.parse_args()
 
-    model = seed_sized_gpt(args.device)
+    model = paper_sized_gpt(args.device)
     block, field = model.config.block_size, model.receptive_field
     print(
         f"GPT: {model.parameter_count():,} parameters, block {block}, receptive field {field}; "

@@ -29,7 +29,7 @@ from hierarchy import DecoderSpec, LatentActionVecEnv, LatentDecoder, LatentPrio
 from tasks.observables import DECODER, PROPRIOCEPTION
 
 
-def seed_sized_decoder() -> LatentDecoder:
+def paper_sized_decoder() -> LatentDecoder:
     torch.manual_seed(0)
     spec = DecoderSpec({k: PROPRIOCEPTION[k] for k in DECODER})  # the paper's defaults: latent 60, 3 x 1024
     return LatentDecoder(spec, np.zeros(spec.observation_size), np.ones(spec.observation_size))
@@ -70,7 +70,7 @@ def main() -> None:
     if args.torch_threads > 0:
         torch.set_num_threads(args.torch_threads)
 
-    decoder = seed_sized_decoder()
+    decoder = paper_sized_decoder()
     plain = DummyVecEnv([lambda: tasks.make(args.task)] * args.envs)
     prior = LatentPrior.for_decoder(decoder, hidden_layers=(256, 256)).freeze() if args.latent_prior else None
     latent = LatentActionVecEnv(DummyVecEnv([lambda: tasks.make(args.task)] * args.envs), decoder, prior=prior)

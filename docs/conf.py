@@ -13,7 +13,7 @@ sys.path[:0] = [str(DOCS.parent), str(DOCS / "_ext")]
 
 project = "mocap-hierarchy"
 author = "the mocap-hierarchy developers"
-copyright = "2026, the mocap-hierarchy developers"  # noqa: A001 (Sphinx's name)
+copyright = "2026, the mocap-hierarchy developers"
 
 extensions = [
     "myst_parser",

@@ -93,7 +93,9 @@ def python_imports(files: Iterable[Path]) -> list[str]:
             except SyntaxError as error:
                 statements.append(f"raise SyntaxError({f'{path.name}: {error}'!r})")
                 continue
-            statements += [ast.unparse(node) for node in ast.walk(tree) if isinstance(node, ast.Import | ast.ImportFrom)]
+            statements += [
+                ast.unparse(node) for node in ast.walk(tree) if isinstance(node, ast.Import | ast.ImportFrom)
+            ]
     return statements
 
 

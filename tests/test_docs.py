@@ -85,7 +85,8 @@ def test_quoted_figures_are_read_from_the_json_their_commands_wrote(pages):
 
 def test_user_facing_text_calls_the_paper_the_paper(pages):
     """'seed' means a random seed only; no page speaks of sessions or issues (words of the development log)."""
-    pattern = re.compile(r"\bthe seed'?s?\b(?![- ]mean)|\bseed (?:Table|[AB]\.\d)|\bsessions?\b|\bthe issue'?s?\b", re.I)
+    paper = r"\bthe seed's|\bthe seed[:;)]|\bseed (?:paper|Table|[AB]\.\d)"
+    pattern = re.compile(rf"{paper}|\bsessions?\b|\bthe issue'?s?\b", re.I)
     hits = [f"{page.relative_to(ROOT)}: {m.group(0)}" for page in pages for m in pattern.finditer(page.read_text())]
     assert hits == []
 
@@ -132,7 +133,9 @@ def test_a_snippet_importing_a_missing_name_fails():
 
 
 def test_python_imports_are_collected_from_python_blocks_only(tmp_path):
-    page = planted(tmp_path, "# P\n\n```python\nimport tasks\nfrom hierarchy import x\n```\n\n```text\nimport os\n```\n")
+    page = planted(
+        tmp_path, "# P\n\n```python\nimport tasks\nfrom hierarchy import x\n```\n\n```text\nimport os\n```\n"
+    )
     assert docs_checks.python_imports([page]) == ["import tasks", "from hierarchy import x"]
 
 

@@ -30,6 +30,7 @@ TINY: dict[str, list[str]] = {
     "rollout": ["--n-start", "1", "--n-rsi", "1", "--n-envs", "1"],
     "distill train": ["--steps", "10", "--batch-size", "4", "--window", "4"],
     "distill eval": ["--episodes", "1"],
+    "decoder fit-prior": ["--episodes", "1", "--steps", "10", "--n-envs", "1", "--hidden-layers", "8"],
     "transfer train": ["--total-steps", "64", "--n-envs", "1", "--steps-per-update", "32", "--minibatch-size", "32"],
     "transfer eval": ["--episodes", "1", "--max-steps", "10"],
     "gpt train": ["--steps", "4", "--batch-size", "4", "--layers", "1", "--heads", "2", "--embedding-size", "16"],

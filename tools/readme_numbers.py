@@ -11,8 +11,9 @@ The quickstart's ``summary.json`` from that same fresh run is copied to
 The numbers, the machine (cores, CPU model, load average before and after, which tells
 a quiet machine from a shared one) and the commit go to ``docs/readme_numbers.json``;
 with ``--update-readme`` every ``<!-- measured:KEY -->VALUE<!-- /measured -->`` span of
-the README is rewritten from it. ``tests/test_docs.py`` checks that the README's spans
-and the JSON agree. Takes about 20 minutes on 2 cores.
+the README is rewritten from it, and so is every ``<!-- value: FILE KEY -->`` span of the
+results and quickstart pages that quotes one of the two files written here.
+``tests/test_docs.py`` checks that the pages and the JSON agree. Takes about 20 minutes on 2 cores.
 
     python tools/readme_numbers.py [--update-readme] [--skip-tests] [--skip-quickstart] [--quickstart-out DIR]
 
@@ -90,7 +91,37 @@ def update_readme(numbers: dict[str, float]) -> int:
     return changed
 
 
+VALUE_SPAN = re.compile(r"<!-- value: (\S+) (\S+) -->(.*?)<!-- /value -->")
+PAGES_QUOTING = (ROOT / "docs" / "results.md", ROOT / "docs" / "getting-started" / "quickstart.md")
+"""Pages whose ``<!-- value: FILE KEY -->`` spans quote the files this script writes."""
+
+
+def update_quoted_values() -> int:
+    """Rewrites the value spans that quote this script's files (same decimals as shown); returns how many changed."""
+    written = {str(NUMBERS.relative_to(ROOT)), str(QUICKSTART_SUMMARY.relative_to(ROOT))}
+    changed = 0
+    for page in PAGES_QUOTING:
+        text = page.read_text()
+
+        def fresh(match: re.Match[str]) -> str:
+            nonlocal changed
+            source, key, shown = match.groups()
+            if source not in written:
+                return match[0]
+            value: object = json.loads((ROOT / source).read_text())
+            for part in key.split("."):
+                value = value[int(part)] if isinstance(value, list) else value[part]  # type: ignore[index]
+            decimals = len(shown.split(".")[1]) if "." in shown else 0
+            new = f"{float(value):.{decimals}f}"  # type: ignore[arg-type]
+            changed += new != shown
+            return f"<!-- value: {source} {key} -->{new}<!-- /value -->"
+
+        page.write_text(VALUE_SPAN.sub(fresh, text))
+    return changed
+
+
 def main() -> None:
+    """Measures, writes ``docs/readme_numbers.json`` and, with ``--update-readme``, the pages that quote it."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--update-readme", action="store_true", help="rewrite the README's measured spans")
     parser.add_argument("--skip-tests", action="store_true", help="keep the earlier tests_minutes")
@@ -118,6 +149,8 @@ def main() -> None:
             print(f"quickstart rerun: {numbers['quickstart_rerun_seconds']:.1f} s")
             QUICKSTART_SUMMARY.parent.mkdir(parents=True, exist_ok=True)
             QUICKSTART_SUMMARY.write_text((out / "summary.json").read_text())
+            if args.update_readme:  # before the test run, whose docs checks compare the pages with this summary
+                print(f"docs: {update_quoted_values()} quoted value(s) changed")
     if args.skip_tests and "tests_minutes" in earlier["numbers"]:
         numbers["tests_minutes"] = earlier["numbers"]["tests_minutes"]
     else:
@@ -135,6 +168,7 @@ def main() -> None:
     print(f"wrote {NUMBERS}")
     if args.update_readme:
         print(f"README.md: {update_readme(record['numbers'])} span(s) changed")
+        print(f"docs: {update_quoted_values()} quoted value(s) changed")
 
 
 if __name__ == "__main__":

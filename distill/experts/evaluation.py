@@ -82,7 +82,7 @@ encoder's view of the reference (bodies' positions and orientations relative to 
 
 
 def expert_ref_steps(keys: tuple[str, ...] | list[str]) -> tuple[int, ...]:
-    """``ref_steps`` of an expert observing ``keys``: the rollouts' 1..5 if it sees the reference, else 0 (the paper's)."""
+    """``ref_steps`` of an expert seeing ``keys``: the rollouts' 1..5 if it sees the reference, else 0 (the paper's)."""
     return ROLLOUT_REF_STEPS if any(k.startswith("walker/reference_") for k in keys) else (0,)
 
 

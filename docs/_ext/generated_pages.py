@@ -219,8 +219,9 @@ def _scores(card: dict[str, Any]) -> list[str]:
     if fraction:
         lines += [
             "",
-            f"Multi-clip policy as a fraction of its experts (mean over {fraction.get('snippets')} snippets): reward "
-            f"**{_number(fraction.get('normalized_reward'))}**, length **{_number(fraction.get('normalized_length'))}**.",
+            f"Multi-clip policy as a fraction of its experts (mean over {fraction.get('snippets')} snippets): "
+            f"reward **{_number(fraction.get('normalized_reward'))}**, "
+            f"length **{_number(fraction.get('normalized_length'))}**.",
         ]
     return lines
 
@@ -255,7 +256,7 @@ def decoder_page(name: str, path: Path, prior_path: Path | None) -> str:
         "",
         f"A frozen low-level controller for the dm_control CMU humanoid (`{spec.walker}`): a high-level policy "
         f"chooses a latent `z` every control step and the decoder turns it, with the humanoid's proprioception, into "
-        f"joint position targets. Load it with `load_decoder(\"{name}\")` or `--decoder {name}` on `transfer train`; "
+        f'joint position targets. Load it with `load_decoder("{name}")` or `--decoder {name}` on `transfer train`; '
         "see [a pretrained decoder in your own task](../tutorials/pretrained-decoder.md). It was distilled from "
         "experts on the built-in synthetic clips, not on motion capture of people: use it to study hierarchical "
         "control and transfer, not as a model of human motion.",
