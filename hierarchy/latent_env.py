@@ -115,8 +115,9 @@ class LatentActionEnv(gym.Wrapper):
         self._low, self._high = _action_bounds(decoder, env.action_space)
         self.decoder = decoder
         self.steps_per_latent = steps_per_latent
-        self.action_space = _latent_space(decoder, max_latent)
-        self._latents = _Latents(decoder, prior, self.action_space)
+        space = _latent_space(decoder, max_latent)
+        self.action_space = space
+        self._latents = _Latents(decoder, prior, space)
         self._observation: dict[str, np.ndarray] = {}
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):

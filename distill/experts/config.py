@@ -496,6 +496,7 @@ class PiecewiseLearningRate:
         """The rate for SB3's remaining fraction of training."""
         done = min(max(1.0 - progress_remaining, 0.0), 1.0)
         if self.switch_steps:
+            assert self.total_steps is not None  # checked in __init__
             return value_at_step(self.rates, self.switch_steps, round(done * self.total_steps))
         part = min(int(done * len(self.rates)), len(self.rates) - 1)
         return self.rates[part]

@@ -159,15 +159,19 @@ class _ExpertCallback(BaseCallback):
 
     def _on_rollout_start(self) -> None:
         config = self.trainer.config
+        model = self.model
+        assert isinstance(model, PPO)
         if config.action_std_steps:
             std = config.action_std_at(self.num_timesteps)
-            _set_fixed_noise(self.model, std)
+            _set_fixed_noise(model, std)
             self.logger.record("train/action_std", std)
         if config.steps_per_update_steps:
-            self.logger.record("train/steps_per_update", self.model.n_steps * self.model.n_envs)  # this rollout's
+            self.logger.record("train/steps_per_update", model.n_steps * model.n_envs)  # this rollout's
         if config.termination_curriculum_steps:
             threshold = config.training_threshold(self.num_timesteps)
-            self.model.get_env().env_method("set_termination_threshold", threshold)
+            env = model.get_env()
+            assert env is not None  # a training model always holds its environments
+            env.env_method("set_termination_threshold", threshold)
             self.logger.record("train/termination_threshold", threshold)
         schedule = self.model.learning_rate  # as given to PPO (lr_schedule wraps it)
         kl = self.model.logger.name_to_value.get("train/approx_kl")  # the last update's, until the next dump

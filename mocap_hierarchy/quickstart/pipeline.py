@@ -103,7 +103,11 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
             f"velocity control {MODE_LABELS[mode]}",
             {**task_settings, "decoder": transfer_decoder if decoder else None, "prior": prior},
             functools.partial(
-                transfer_stage, out / f"velocity_{mode}", decoder and decoder["path"], prior and prior["path"], config
+                transfer_stage,
+                out / f"velocity_{mode}",
+                decoder["path"] if decoder else None,
+                prior["path"] if prior else None,
+                config,
             ),
             outputs=lambda result: [result["policy"], result["progress"]],
         )

@@ -33,6 +33,8 @@ def evenly_spaced(count: int, frames: int) -> list[int]:
 def read_frames(video: str | os.PathLike) -> tuple[list[np.ndarray], float]:
     """Every frame of ``video`` as RGB arrays, and its frame rate (frames per second)."""
     av = import_pyav()
+    from av import error as av_error  # importable once import_pyav succeeded
+
     path = Path(video)
     if not path.is_file():
         raise FileNotFoundError(f"no video at {path}; write one with `mocap-hierarchy record ... --video {path}`")
@@ -41,7 +43,7 @@ def read_frames(video: str | os.PathLike) -> tuple[list[np.ndarray], float]:
             stream = container.streams.video[0]
             rate = float(stream.average_rate or stream.guessed_rate or 1)
             pixels = [frame.to_ndarray(format="rgb24") for frame in container.decode(stream)]
-    except (av.FFmpegError, IndexError) as error:
+    except (av_error.FFmpegError, IndexError) as error:
         raise ValueError(f"{path} is not a readable video ({error})") from None
     return pixels, rate
 
