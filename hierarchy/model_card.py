@@ -88,38 +88,13 @@ def action_difference(first: LatentDecoder, second: LatentDecoder, samples: int 
 
 
 def card_markdown(card: dict[str, Any], file_name: str = "") -> str:
-    """The card as a Markdown page (the ``docs/`` copy)."""
+    """The card as a Markdown page (what ``mocap-hierarchy decoder card`` writes)."""
     lines = [f"# Decoder `{card.get('name', file_name)}`", "", card.get("summary", ""), ""]
     data = card.get("data", {})
     if data:
         lines += ["## Data", ""] + [f"- **{key}**: {_text(value)}" for key, value in data.items()] + [""]
-    experts, policy = card.get("experts", {}), card.get("multi_clip", {})
-    if experts:
-        lines += [
-            "## Scores",
-            "",
-            card.get("protocol", ""),
-            "",
-            "| snippet | expert reward | expert length | multi-clip reward | multi-clip length | fraction (reward) |",
-            "|---|---|---|---|---|---|",
-        ]
-        for snippet, row in experts.items():
-            other = policy.get("snippets", {}).get(snippet, {})
-            reward = other.get("normalized_reward")
-            fraction = reward / row["normalized_reward"] if reward is not None and row["normalized_reward"] else None
-            lines.append(
-                f"| {snippet} | {row['normalized_reward']:.3f} | {row['normalized_length']:.3f} | "
-                f"{_number(reward)} | {_number(other.get('normalized_length'))} | {_number(fraction)} |"
-            )
-        fraction = policy.get("fraction", {})
-        if fraction:
-            lines += [
-                "",
-                f"Multi-clip policy as a fraction of the experts (mean over {fraction.get('snippets')} snippets): "
-                f"reward **{_number(fraction.get('normalized_reward'))}**, "
-                f"length **{_number(fraction.get('normalized_length'))}**.",
-            ]
-        lines.append("")
+    if card.get("experts"):
+        lines += ["## Scores", "", *scores_markdown(card)]
     budgets = card.get("budgets", {})
     if budgets:
         lines += ["## Budgets", ""] + [f"- **{key}**: {_text(value)}" for key, value in budgets.items()] + [""]
@@ -130,6 +105,39 @@ def card_markdown(card: dict[str, Any], file_name: str = "") -> str:
     if notes:
         lines += ["## Limitations", ""] + [f"- {note}" for note in notes] + [""]
     return "\n".join(lines)
+
+
+def scores_markdown(card: dict[str, Any]) -> list[str]:
+    """The card's scores as Markdown lines: its protocol, a table per snippet, the multi-clip fraction.
+
+    Empty when the card holds no expert scores.
+    """
+    experts, policy = card.get("experts", {}), card.get("multi_clip", {})
+    if not experts:
+        return []
+    lines = [
+        card.get("protocol", ""),
+        "",
+        "| snippet | expert reward | expert length | multi-clip reward | multi-clip length | fraction (reward) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for snippet, row in experts.items():
+        other = policy.get("snippets", {}).get(snippet, {})
+        reward = other.get("normalized_reward")
+        fraction = reward / row["normalized_reward"] if reward is not None and row["normalized_reward"] else None
+        lines.append(
+            f"| {snippet} | {row['normalized_reward']:.3f} | {row['normalized_length']:.3f} | "
+            f"{_number(reward)} | {_number(other.get('normalized_length'))} | {_number(fraction)} |"
+        )
+    fraction = policy.get("fraction", {})
+    if fraction:
+        lines += [
+            "",
+            f"Multi-clip policy as a fraction of the experts (mean over {fraction.get('snippets')} snippets): "
+            f"reward **{_number(fraction.get('normalized_reward'))}**, "
+            f"length **{_number(fraction.get('normalized_length'))}**.",
+        ]
+    return [*lines, ""]
 
 
 def _number(value: float | None) -> str:

@@ -5,6 +5,7 @@ Every check also runs on a page with a planted break, so a check that stopped lo
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 import subprocess
@@ -171,3 +172,49 @@ def test_slugs_follow_github_and_repeat_with_suffixes():
         "setup",
         "setup-1",
     }
+
+
+# ------------------------------------------------------------------------------------------------ generated pages
+
+
+def test_model_cards_are_rendered_from_the_shipped_files():
+    import hashlib
+
+    from hierarchy.decoder import load_decoder
+    from hierarchy.model_card import card_of
+    from hierarchy.pretrained import pretrained_decoders
+
+    pages = generated_pages.model_pages()
+    assert {"synthetic-v3.md", "synthetic-v3-prior.md"} <= set(pages)
+    for name, path in pretrained_decoders().items():
+        page, card = pages[f"{name}.md"], card_of(load_decoder(path))
+        assert card is not None and card["summary"] in page
+        assert hashlib.sha256(path.read_bytes()).hexdigest() in page
+        for section in ("Overview", "Intended use", "Inputs and outputs", "Artifacts", "Limitations", "Provenance"):
+            assert f"## {section}" in page
+
+
+def test_configs_reference_refuses_a_field_without_a_meaning(monkeypatch):
+    import types
+
+    from foundation.sb3 import PpoSettings
+
+    assert generated_pages.attribute_docs(PpoSettings)["gamma"] == "Discount factor."
+    module = types.ModuleType("half_documented")
+    module.HalfDocumented = HalfDocumented  # type: ignore[attr-defined]
+    monkeypatch.setitem(sys.modules, "half_documented", module)
+    monkeypatch.setattr(generated_pages, "CONFIG_CLASSES", ("half_documented.HalfDocumented",))
+    with pytest.raises(ValueError, match=r"half_documented\.HalfDocumented\.undocumented"):
+        generated_pages.configs_page()
+
+
+@dataclasses.dataclass(frozen=True)
+class HalfDocumented:
+    """A settings class for the test above.
+
+    Attributes:
+        documented: Has a meaning.
+    """
+
+    documented: int = 1
+    undocumented: int = 2

@@ -65,7 +65,7 @@ def tiny(command: str) -> list[str]:
 @pytest.mark.slow
 def test_every_documented_command_runs_in_order(tmp_path, clip_library):
     commands = documented_commands()
-    assert len(commands) >= 20
+    assert len(commands) >= 10  # one per stage of the pipeline, plus the quickstart
     ran, skipped = [], []
     for command in commands:
         if any(marker in f" {command} " for marker in SKIPPED):

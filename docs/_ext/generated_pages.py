@@ -193,43 +193,10 @@ def _text(value: Any) -> str:
     return str(value)
 
 
-def _number(value: float | None) -> str:
-    return "-" if value is None else f"{value:.3f}"
-
-
-def _scores(card: dict[str, Any]) -> list[str]:
-    experts, policy = card.get("experts", {}), card.get("multi_clip", {})
-    if not experts:
-        return ["No scores are recorded in this file."]
-    lines = [
-        card.get("protocol", ""),
-        "",
-        "| snippet | expert reward | expert length | multi-clip reward | multi-clip length | fraction (reward) |",
-        "|---|---|---|---|---|---|",
-    ]
-    for snippet, row in experts.items():
-        other = policy.get("snippets", {}).get(snippet, {})
-        reward = other.get("normalized_reward")
-        fraction = reward / row["normalized_reward"] if reward is not None and row["normalized_reward"] else None
-        lines.append(
-            f"| {snippet} | {row['normalized_reward']:.3f} | {row['normalized_length']:.3f} | {_number(reward)} | "
-            f"{_number(other.get('normalized_length'))} | {_number(fraction)} |"
-        )
-    fraction = policy.get("fraction", {})
-    if fraction:
-        lines += [
-            "",
-            f"Multi-clip policy as a fraction of its experts (mean over {fraction.get('snippets')} snippets): "
-            f"reward **{_number(fraction.get('normalized_reward'))}**, "
-            f"length **{_number(fraction.get('normalized_length'))}**.",
-        ]
-    return lines
-
-
 def decoder_page(name: str, path: Path, prior_path: Path | None) -> str:
     """The model card of shipped decoder ``name``, from the card and description inside its file."""
     from hierarchy.decoder import load_decoder
-    from hierarchy.model_card import card_of
+    from hierarchy.model_card import card_of, scores_markdown
 
     decoder = load_decoder(path)
     spec = decoder.spec
@@ -286,7 +253,7 @@ def decoder_page(name: str, path: Path, prior_path: Path | None) -> str:
         "",
         "## Measured scores",
         "",
-        *_scores(card),
+        *(scores_markdown(card) or ["No scores are recorded in this file."]),
         "",
         "## Limitations",
         "",
