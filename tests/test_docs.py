@@ -103,6 +103,8 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
     assert result.returncode == 0, result.stderr[-4000:]
     built = (tmp_path / "html" / "reference" / "cli.html").read_text()
     assert "mocap-hierarchy expert train" in built and "--profile" in built  # generated from the parsers
+    api = (tmp_path / "html" / "reference" / "api.html").read_text()
+    assert 'id="hierarchy.train_transfer"' in api and 'id="tasks.register"' in api  # autodoc found the members
 
 
 # ------------------------------------------------------------------------------------------------ planted breaks
