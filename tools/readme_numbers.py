@@ -133,6 +133,7 @@ def main() -> None:
     if args.quickstart_out is not None and args.quickstart_out.exists():
         parser.error(f"--quickstart-out {args.quickstart_out} exists; the timing is of a fresh run: give a new folder")
     before = machine()
+    measured_at = commit()  # before this script writes anything into the tree
     earlier = json.loads(NUMBERS.read_text()) if NUMBERS.is_file() else {"numbers": {}}
     numbers: dict[str, float] = {}
     remeasured = []
@@ -160,7 +161,7 @@ def main() -> None:
     record = {
         "numbers": {k: round(v, 2) for k, v in numbers.items()},
         "machine": {**before, "load_average_after": machine()["load_average"]},
-        "commit": commit(),
+        "commit": measured_at,
         "date": date.today().isoformat(),
         "remeasured": remeasured,  # the others kept from the earlier record
     }
