@@ -220,3 +220,32 @@ class HalfDocumented:
 
     documented: int = 1
     undocumented: int = 2
+
+
+# ------------------------------------------------------------------------------------------------ experiment pages
+
+
+def experiment_pages() -> list[Path]:
+    return sorted((DOCS / "experiments").glob("20[0-9][0-9]-[0-9][0-9]-[0-9][0-9]-*.md"))
+
+
+def test_every_experiment_page_is_dated_has_a_status_and_its_script():
+    """Each page: its file's date on its date line, current or superseded, and an executable script it runs."""
+    pages = experiment_pages()
+    assert len(pages) >= 40
+    scripts = set()
+    for page in pages:
+        text = page.read_text()
+        head = re.search(r"^\*\*Date:\*\* (\d{4}-\d\d-\d\d) · \*\*Status:\*\* (current|superseded)", text, re.M)
+        assert head, f"{page.name}: no '**Date:** ... · **Status:** current|superseded' line"
+        assert page.name.startswith(head.group(1)), f"{page.name}: dated {head.group(1)}"
+        named = re.findall(r"^bash (experiments/[\w-]+\.sh)$", text, re.M)
+        assert named, f"{page.name}: no `bash experiments/<name>.sh` under Reproduce"
+        for script in named:
+            path = ROOT / script
+            assert path.is_file() and path.stat().st_mode & 0o111, f"{page.name}: {script} missing or not executable"
+            scripts.add(path)
+    assert set((ROOT / "experiments").glob("*.sh")) == scripts  # no script without its page
+    for script in sorted(scripts):
+        syntax = subprocess.run(["bash", "-n", str(script)], capture_output=True, text=True)
+        assert syntax.returncode == 0, f"{script.name}: {syntax.stderr}"
