@@ -25,7 +25,6 @@ extensions = [
 source_suffix = {".md": "markdown"}
 root_doc = "index"
 exclude_patterns = ["_build", "figures/report_*", "**/README.md"]
-suppress_warnings: list[str] = []
 
 myst_heading_anchors = 4  # `page.md#a-heading` links resolve like GitHub's
 myst_enable_extensions = ["colon_fence", "deflist"]
@@ -39,4 +38,3 @@ napoleon_use_ivar = True
 
 html_theme = "furo"
 html_title = "mocap-hierarchy"
-html_static_path: list[str] = []

@@ -13,17 +13,20 @@ import io
 import json
 import re
 import shlex
+import subprocess
+import sys
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
+sys.path.insert(0, str(ROOT / "tools"))  # tools/quoted_values.py: the quoted-figure spans, shared with readme_numbers
+from quoted_values import mismatches  # noqa: E402
 
 FENCE = re.compile(r"^(```+|~~~+)([^\n]*)\n(.*?)^\1[ \t]*$", flags=re.M | re.S)
 LINK = re.compile(r"!?\[(?:[^\[\]]|\[[^\]]*\])*\]\(([^()\s]+)(?:\s+\"[^\"]*\")?\)")
 HEADING = re.compile(r"^(#{1,6})[ \t]+(.+?)[ \t]*#*$", flags=re.M)
-VALUE_SPAN = re.compile(r"<!-- value: (\S+) (\S+) -->(.*?)<!-- /value -->")
 
 
 def markdown_files() -> list[Path]:
@@ -99,6 +102,14 @@ def python_imports(files: Iterable[Path]) -> list[str]:
     return statements
 
 
+def check_python_imports(files: Iterable[Path]) -> list[str]:
+    """The import statements of the ``python`` blocks, run together in a fresh interpreter: its error, if any."""
+    result = subprocess.run(
+        [sys.executable, "-c", "\n".join(python_imports(files))], capture_output=True, text=True, cwd=ROOT
+    )
+    return [result.stderr.strip().splitlines()[-1]] if result.returncode else []
+
+
 def command_lines(files: Iterable[Path], program: str = "mocap-hierarchy") -> list[tuple[Path, str]]:
     """Every ``program`` invocation of the ``bash`` blocks, continuation lines joined, ``# comments`` dropped."""
     found = []
@@ -142,9 +153,10 @@ def check_command_lines(files: Iterable[Path]) -> list[str]:
     """Every ``mocap-hierarchy`` line of the ``bash`` blocks parses against the real parsers."""
     from mocap_hierarchy.cli import build_parser
 
+    parser = build_parser()  # parsing leaves it as it was (a chosen subcommand stays built), so one serves all lines
     problems = []
     for path, line in command_lines(files):
-        complaint = check_command_line(build_parser(), line)
+        complaint = check_command_line(parser, line)
         if complaint:
             problems.append(f"{path.relative_to(ROOT)}: `{line}`: {complaint}")
     return problems
@@ -160,26 +172,10 @@ def json_source(path: Path) -> Any:
     return json.loads(path.read_text())
 
 
-def lookup(record: Any, key: str) -> Any:
-    """``record``'s value at a dotted key path (list items by index; a key may contain ``/``)."""
-    for part in key.split("."):
-        record = record[int(part)] if isinstance(record, list) else record[part]
-    return record
-
-
 def check_quoted_values(files: Iterable[Path]) -> list[str]:
     """Every ``<!-- value: FILE KEY -->TEXT<!-- /value -->`` span shows FILE's value at KEY, rounded as written."""
-    problems = []
-    for path in files:
-        for source, key, shown in VALUE_SPAN.findall(path.read_text()):
-            where = f"{path.relative_to(ROOT)}: {source} {key}"
-            try:
-                value = lookup(json_source(ROOT / source), key)
-            except (OSError, KeyError, IndexError, ValueError) as error:
-                problems.append(f"{where}: cannot be read ({error!r})")
-                continue
-            decimals = len(shown.split(".")[1]) if "." in shown else 0
-            expected = f"{float(value):,.{decimals}f}" if "," in shown else f"{float(value):.{decimals}f}"
-            if shown != expected:
-                problems.append(f"{where}: the page shows {shown}, the file holds {value} ({expected})")
-    return problems
+    return [
+        f"{path.relative_to(ROOT)}: {problem}"
+        for path in files
+        for problem in mismatches(path.read_text(), lambda source: json_source(ROOT / source))
+    ]

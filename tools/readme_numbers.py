@@ -36,6 +36,8 @@ import time
 from datetime import date
 from pathlib import Path
 
+from quoted_values import refreshed  # tools/quoted_values.py, beside this script
+
 ROOT = Path(__file__).resolve().parents[1]
 NUMBERS = ROOT / "docs" / "readme_numbers.json"
 QUICKSTART_SUMMARY = ROOT / "docs" / "results" / "quickstart_summary.json"
@@ -91,32 +93,18 @@ def update_readme(numbers: dict[str, float]) -> int:
     return changed
 
 
-VALUE_SPAN = re.compile(r"<!-- value: (\S+) (\S+) -->(.*?)<!-- /value -->")
 PAGES_QUOTING = (ROOT / "docs" / "results.md", ROOT / "docs" / "getting-started" / "quickstart.md")
 """Pages whose ``<!-- value: FILE KEY -->`` spans quote the files this script writes."""
 
 
 def update_quoted_values() -> int:
     """Rewrites the value spans that quote this script's files (same decimals as shown); returns how many changed."""
-    written = {str(NUMBERS.relative_to(ROOT)), str(QUICKSTART_SUMMARY.relative_to(ROOT))}
+    sources = {str(path.relative_to(ROOT)): json.loads(path.read_text()) for path in (NUMBERS, QUICKSTART_SUMMARY)}
     changed = 0
     for page in PAGES_QUOTING:
-        text = page.read_text()
-
-        def fresh(match: re.Match[str]) -> str:
-            nonlocal changed
-            source, key, shown = match.groups()
-            if source not in written:
-                return match[0]
-            value: object = json.loads((ROOT / source).read_text())
-            for part in key.split("."):
-                value = value[int(part)] if isinstance(value, list) else value[part]  # type: ignore[index]
-            decimals = len(shown.split(".")[1]) if "." in shown else 0
-            new = f"{float(value):.{decimals}f}"  # type: ignore[arg-type]
-            changed += new != shown
-            return f"<!-- value: {source} {key} -->{new}<!-- /value -->"
-
-        page.write_text(VALUE_SPAN.sub(fresh, text))
+        text, count = refreshed(page.read_text(), sources)
+        page.write_text(text)
+        changed += count
     return changed
 
 

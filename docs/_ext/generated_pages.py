@@ -17,7 +17,6 @@ import dataclasses
 import hashlib
 import importlib
 import inspect
-import json
 import os
 import re
 import sys
@@ -370,4 +369,3 @@ if __name__ == "__main__":
     sys.path.insert(0, str(DOCS.parent))
     for page in write_generated_pages():
         print(page.relative_to(DOCS.parent))
-    print(json.dumps({"written": True}))
