@@ -65,9 +65,8 @@ def reopen_reader(windows: WindowDataset) -> callable:
     weights = windows.weights
 
     def read(index: int) -> dict[str, np.ndarray]:
-        episode_number = int(windows._window_episode[index])
+        episode_number, start, offset = windows.window_location(index)
         episode = windows.episodes[episode_number]
-        start = int(windows._window_start[index])
         with h5py.File(files[episode.file], "r") as f:
             group = f[episode.group]
             rows = group[schema.OBSERVATIONS][start : start + WINDOW]
@@ -75,7 +74,6 @@ def reopen_reader(windows: WindowDataset) -> callable:
             out["actions"] = group[schema.MEAN_ACTIONS][start : start + WINDOW]
             out["advantages"] = group[schema.ADVANTAGES][start : start + WINDOW]
             out["values"] = group[schema.VALUES][start : start + WINDOW]
-        offset = windows._act_offset[episode_number] + start
         out["weights"] = weights[offset : offset + WINDOW]
         return out
 

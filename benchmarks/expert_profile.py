@@ -47,11 +47,14 @@ TRAINING = """
 import sys
 from distill.experts.config import ExpertConfig
 from distill.experts.training import train_expert
+from foundation.config_files import with_settings
 steps, n_envs, threads = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[4])
 in_process, out = sys.argv[3] == "1", sys.argv[5]
-config = ExpertConfig(total_steps=steps, hidden_layers=(256, 256), steps_per_update=4096, epochs=5,
-                      learning_rates=(3e-4,), n_envs=n_envs, subprocess_envs=not in_process, torch_threads=threads,
-                      eval_every=steps, eval_episodes=20, eval_at_start=False, checkpoint_every=10 * steps)
+config = with_settings(ExpertConfig(), {
+    "total_steps": steps, "hidden_layers": (256, 256), "steps_per_update": 4096, "epochs": 5, "learning_rate": 3e-4,
+    "n_envs": n_envs, "subprocess_envs": not in_process, "torch_threads": threads, "eval_every": steps,
+    "eval_episodes": 20, "eval_at_start": False, "checkpoint_every": 10 * steps,
+})
 train_expert("SYN_walk_slow-0-182", out, config, progress=False)
 """
 

@@ -28,8 +28,9 @@ import statistics
 import tempfile
 import time
 
-from distill.experts.config import ExpertConfig, expert_profiles
+from distill.experts.config import PROFILES, ExpertConfig, expert_profile
 from distill.experts.training import train_expert
+from foundation.config_files import with_settings
 
 LAYOUTS: dict[str, dict] = {
     "default (subprocess envs, torch threads: default)": {},
@@ -46,11 +47,10 @@ also turns that one off."""
 
 def profile_configs(names: list[str]) -> dict[str, ExpertConfig]:
     """The named profiles as measured: evaluations, checkpoints and the final evaluation off."""
-    profiles = expert_profiles()
-    unknown = [name for name in names if name not in profiles]
+    unknown = [name for name in names if name not in PROFILES]
     if unknown:
-        raise SystemExit(f"unknown profile(s) {unknown}; choose from {sorted(profiles)}")
-    return {name: dataclasses.replace(profiles[name], **UNMEASURED, final_eval_episodes=0) for name in names}
+        raise SystemExit(f"unknown profile(s) {unknown}; choose from {', '.join(PROFILES)}")
+    return {name: with_settings(expert_profile(name), {**UNMEASURED, "final_eval_episodes": 0}) for name in names}
 
 
 def seconds(config: ExpertConfig, snippet: str) -> float:
@@ -80,20 +80,23 @@ def main() -> None:
         configs = profile_configs(args.profiles)
         what, baseline = "profiles", args.profiles[0]
     else:
-        base = ExpertConfig(
-            steps_per_update=args.steps_per_update,
-            epochs=5,
-            minibatch_size=512,
-            learning_rates=(3e-4,),
-            hidden_layers=tuple(args.hidden_layers),
-            **UNMEASURED,
+        base = with_settings(
+            ExpertConfig(),
+            {
+                "steps_per_update": args.steps_per_update,
+                "epochs": 5,
+                "minibatch_size": 512,
+                "learning_rate": 3e-4,
+                "hidden_layers": tuple(args.hidden_layers),
+                **UNMEASURED,
+            },
         )
         configs = {name: dataclasses.replace(base, **changes) for name, changes in LAYOUTS.items()}
         what, baseline = f"hidden layers {tuple(args.hidden_layers)}", "default"
     rates: dict[str, list[float]] = {name: [] for name in configs}
     for trial in range(args.trials):
         for name, config in configs.items():
-            short, long = (u * config.steps_per_update for u in args.updates)
+            short, long = (u * config.steps_per_update_at(0) for u in args.updates)
             first = seconds(dataclasses.replace(config, total_steps=short), args.snippet)
             second = seconds(dataclasses.replace(config, total_steps=long), args.snippet)
             rates[name].append((long - short) / (second - first))

@@ -28,19 +28,19 @@ def ppo_steps_per_second(out: str, steps: int, threads: int | None) -> float:
     """One short high-level PPO run; ``threads`` overrides the pools the fan-out gave this worker."""
     if threads is not None:
         set_thread_pools(threads)
-    from hierarchy.transfer import train_transfer
-    from hierarchy.transfer_config import TransferConfig
+    from foundation.config_files import with_settings
+    from hierarchy.transfer import TransferConfig, train_transfer
 
-    config = TransferConfig(
-        total_steps=steps,
-        n_envs=8,
-        steps_per_update=min(steps, 4096),
-        minibatch_size=512,
-        hidden_layers=(256, 256),
-        learning_rate=3e-4,
-        subprocess_envs=False,
-        checkpoint_every=10 * steps,
-        device="cpu",
+    config = with_settings(
+        TransferConfig(
+            total_steps=steps,
+            n_envs=8,
+            steps_per_update=min(steps, 4096),
+            subprocess_envs=False,
+            checkpoint_every=10 * steps,
+            device="cpu",
+        ),
+        {"minibatch_size": 512, "hidden_layers": (256, 256), "learning_rate": 3e-4},
     )
     started = time.perf_counter()
     train_transfer("velocity_control", out, decoder="synthetic-v1", config=config, progress=False)

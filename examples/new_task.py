@@ -22,6 +22,7 @@ import mujoco
 import numpy as np
 
 import tasks
+from foundation.config_files import with_settings
 from hierarchy import LatentActionEnv, load_decoder, load_latent_prior
 from hierarchy.latent_prior import shipped_priors
 from hierarchy.transfer import TransferConfig, evaluate_transfer, train_transfer
@@ -96,17 +97,17 @@ def main(argv: list[str] | None = None) -> float:
 
     # The paper's transfer settings (Table 3) scaled to a few minutes, but each latent held for 5 steps and a
     # narrower initial noise: with one step per latent and std 2.5 this budget learns nothing. The decoder is frozen.
-    config = TransferConfig(
-        total_steps=args.steps,
-        n_envs=args.n_envs,
-        steps_per_update=min(2048, args.steps) // args.n_envs * args.n_envs,
-        minibatch_size=min(256, args.steps),
-        hidden_layers=(args.hidden,) * 3,
-        learning_rate=3e-4,
-        initial_std=1.0,
-        steps_per_latent=HOLD,
-        checkpoint_every=max(2048, args.steps // 4),
-        device="cpu",
+    config = with_settings(
+        TransferConfig(
+            total_steps=args.steps,
+            n_envs=args.n_envs,
+            steps_per_update=min(2048, args.steps) // args.n_envs * args.n_envs,
+            initial_std=1.0,
+            steps_per_latent=HOLD,
+            checkpoint_every=max(2048, args.steps // 4),
+            device="cpu",
+        ),
+        {"minibatch_size": min(256, args.steps), "hidden_layers": (args.hidden,) * 3, "learning_rate": 3e-4},
     )
     # Actions are residuals around the latent the prior expects in each state: exploration starts from the
     # experts' motions instead of from z = 0 (the recommended way to use a shipped decoder).

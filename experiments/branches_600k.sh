@@ -9,8 +9,8 @@ cd "$(dirname "$0")/.."
 
 python experiments/expert_learning.py --out runs/branch --snippets SYN_walk_slow-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 4 --profile fast \
-    --variant continued:branch_from=runs/long/fast/seed0 \
-    --variant gamma0.99:gamma=0.99,branch_from=runs/long/fast/seed0 \
-    --variant lr1e-4:learning_rates=1e-4,branch_from=runs/long/fast/seed0 \
-    --variant batch16k:steps_per_update=16384,branch_from=runs/long/fast/seed0 \
-    --variant std0.1:action_std=0.1,branch_from=runs/long/fast/seed0
+    --variant continued:start_from=runs/long/fast/seed0 \
+    --variant gamma0.99:gamma=0.99,start_from=runs/long/fast/seed0 \
+    --variant lr1e-4:learning_rate=1e-4,start_from=runs/long/fast/seed0 \
+    --variant batch16k:steps_per_update=16384,start_from=runs/long/fast/seed0 \
+    --variant std0.1:action_std=0.1,start_from=runs/long/fast/seed0

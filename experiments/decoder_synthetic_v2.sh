@@ -6,23 +6,26 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# The card records the expert commands in the settings names of the time; here they are in today's
+# (one schedule value per setting and start_from for branch_from since 2026-11-26), with the same settings.
+
 # Walk slow: the measured run was stopped just past 2M and copied to runs/snapshots/walk2M; here it stops at 2M.
 python experiments/expert_learning.py --out runs/late --snippets SYN_walk_slow-0-182 --steps 2000000 --eval-every 50000 \
-    --eval-episodes 50 --jobs 1 --profile fast --variant "two-phase:learning_rates=3e-4;1e-4,learning_rate_steps=600000"
+    --eval-episodes 50 --jobs 1 --profile fast --variant "two-phase:learning_rate=3e-4@0;1e-4@600k"
 mkdir -p runs/snapshots && cp -r runs/late/two-phase runs/snapshots/walk2M
 python experiments/expert_learning.py --out runs/late_branch --snippets SYN_walk_slow-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 2 --profile fast \
-    --variant std0.2:learning_rates=1e-4,action_std=0.2,branch_from=runs/snapshots/walk2M/seed0
+    --variant std0.2:learning_rate=1e-4,action_std=0.2,start_from=runs/snapshots/walk2M/seed0
 python experiments/expert_learning.py --out runs/recipe --snippets SYN_turn_left-0-182 SYN_walk_fast-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 2 --profile fast \
-    --variant "recipe:learning_rates=3e-4;1e-4,learning_rate_steps=600000,action_std_steps=2000000,later_action_stds=0.2"
+    --variant "recipe:learning_rate=3e-4@0;1e-4@600k,action_std=0.3@0;0.2@2M"
 python experiments/expert_learning.py --out runs/v2a --snippets SYN_turn_right-0-182 SYN_walk_backward-0-182 --steps 2000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 2 --profile fast \
-    --variant "recipe:learning_rates=3e-4;1e-4,learning_rate_steps=600000,action_std_steps=1400000,later_action_stds=0.2"
+    --variant "recipe:learning_rate=3e-4@0;1e-4@600k,action_std=0.3@0;0.2@1.4M"
 # Stand: the measured run was stopped at 405k (best 0.993 at 352k).
 python experiments/expert_learning.py --out runs/v2b --snippets SYN_stand-0-181 SYN_wave-0-196 --steps 800000 \
     --eval-every 50000 --eval-episodes 50 --jobs 2 --profile fast \
-    --variant "recipe:learning_rates=3e-4;1e-4,learning_rate_steps=600000"
+    --variant "recipe:learning_rate=3e-4@0;1e-4@600k"
 
 mocap-hierarchy rollout --experts runs/v2b/recipe/seed0 runs/v2a/recipe/seed0 runs/recipe/recipe/seed0 \
     runs/late_branch/std0.2/seed0 --out runs/synthetic-v2/dataset --n-start 20 --n-rsi 80 --workers 2

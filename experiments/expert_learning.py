@@ -20,7 +20,7 @@ the spans and the figure come from ``learning_curves.py`` beside this script.
 Usage::
 
     python experiments/expert_learning.py --out runs/sweep --snippets SYN_walk_slow-0-182 --steps 300000 \\
-        --base hidden_layers=256,256 learning_rates=3e-4 steps_per_update=4096 epochs=5 n_envs=2 \\
+        --base hidden_layers=256,256 learning_rate=3e-4 steps_per_update=4096 epochs=5 n_envs=2 \\
         --variant baseline --variant residual:residual_actions=true --variant gamma:gamma=0.99
 """
 
@@ -31,12 +31,13 @@ import json
 import typing
 from pathlib import Path
 
-from distill.experts.config import ExpertConfig, expert_profiles, with_changes
+from distill.experts.config import PROFILES, ExpertConfig, expert_profile
 from distill.experts.fanout import Job, run_jobs
 from distill.experts.files import expert_dir_for
 from distill.experts.training import train_expert
 from foundation.atomic import write_json
 from foundation.config_cli import parse_field_setting
+from foundation.config_files import with_settings
 
 from learning_curves import plot, print_spans, print_table, summarise
 
@@ -121,9 +122,7 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=300_000, help="environment steps per run")
     parser.add_argument("--eval-every", type=int, default=25_000)
     parser.add_argument("--eval-episodes", type=int, default=50)
-    parser.add_argument(
-        "--profile", choices=tuple(expert_profiles()), default="paper", help="starting settings (--base changes them)"
-    )
+    parser.add_argument("--profile", choices=PROFILES, default="paper", help="starting settings (--base changes them)")
     parser.add_argument("--base", nargs="*", default=[], metavar="FIELD=VALUE", help="settings of every variant")
     parser.add_argument(
         "--variant", action="append", default=None, metavar="NAME[:FIELD=VALUE,...]", help="repeat per variant"
@@ -167,7 +166,7 @@ def main() -> None:
         jobs = []
         for name, changes in variants.items():
             for seed in args.seeds:
-                config = with_changes(expert_profiles()[args.profile], {**base, **changes, "seed": seed})
+                config = with_settings(expert_profile(args.profile), {**base, **changes, "seed": seed})
                 config.validate()
                 for snippet in args.snippets:
                     kwargs = {

@@ -38,7 +38,7 @@ from stable_baselines3 import SAC
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
-from distill.experts.config import EvaluationConfig, expert_profiles
+from distill.experts.config import EvaluationConfig, expert_profile
 from distill.experts.evaluation import evaluate_policy, training_task
 from distill.experts.files import ExpertDir
 from distill.experts.training import training_envs
@@ -105,10 +105,10 @@ class PeriodicEvaluation(BaseCallback):
 
 def train(args: argparse.Namespace, path: Path) -> None:
     """SAC on the fast profile's task, evaluated along the way into ``path``."""
-    profile = expert_profiles()["fast"]
+    profile = expert_profile("fast")
     tracking = training_task((args.snippet,), None, profile)
     envs = training_envs(tracking, dataclasses.replace(profile, n_envs=args.n_envs, seed=args.seed))  # in-process
-    normaliser = VecNormalize(envs, norm_obs=True, norm_reward=False, gamma=profile.gamma)
+    normaliser = VecNormalize(envs, norm_obs=True, norm_reward=False, gamma=profile.ppo.gamma)
     model = SAC(
         "MultiInputPolicy",
         normaliser,
@@ -116,7 +116,7 @@ def train(args: argparse.Namespace, path: Path) -> None:
         buffer_size=args.steps,
         learning_starts=args.learning_starts,
         batch_size=args.batch_size,
-        gamma=profile.gamma,
+        gamma=profile.ppo.gamma,
         train_freq=1,
         gradient_steps=args.gradient_steps,
         policy_kwargs={"net_arch": [256, 256]},

@@ -10,10 +10,17 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-python experiments/expert_learning.py --out runs/late --snippets SYN_walk_slow-0-182 --steps 3000000 \
+# Branching from a snapshot (snapshot_steps, branch_step) was removed on 2026-11-26, so this experiment runs at
+# commit 0e51b82, the last commit that had it: a git worktree of that commit in a temporary folder (added once),
+# its code first on the Python path (the installed packages are the same; nothing new is installed), its own
+# expert_learning.py and the flags of that time. The runs still go to this checkout's runs/.
+source experiments/shared/library_at_0e51b82.sh
+export PYTHONPATH="$OLD${PYTHONPATH:+:$PYTHONPATH}"
+
+python "$OLD/experiments/expert_learning.py" --out runs/late --snippets SYN_walk_slow-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 1 --profile fast \
     --variant "two-phase:learning_rates=3e-4;1e-4,learning_rate_steps=600000,snapshot_steps=2000000"
-python experiments/expert_learning.py --out runs/late_branch --snippets SYN_walk_slow-0-182 --steps 3000000 \
+python "$OLD/experiments/expert_learning.py" --out runs/late_branch --snippets SYN_walk_slow-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 2 --profile fast \
     --variant continued:learning_rates=1e-4,branch_from=runs/late/two-phase/seed0,branch_step=2000000 \
     --variant lr3e-5:learning_rates=3e-5,branch_from=runs/late/two-phase/seed0,branch_step=2000000 \

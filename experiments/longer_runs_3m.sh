@@ -12,22 +12,22 @@ cd "$(dirname "$0")/.."
 # the walking step-size branch to 3M (the branches command with only its variant)
 python experiments/expert_learning.py --out runs/branch --snippets SYN_walk_slow-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 1 --profile fast \
-    --variant lr1e-4:learning_rates=1e-4,branch_from=runs/long/fast/seed0
+    --variant lr1e-4:learning_rate=1e-4,start_from=runs/long/fast/seed0
 mkdir -p runs/eval1000
 mocap-hierarchy expert eval runs/branch/lr1e-4/seed0/SYN_walk_slow-0-182 --episodes 1000 --json runs/eval1000/walk_slow_lr1e-4.json
 
 # turning: both branches (the page's table reads them at 1.05-1.2M), then the step-size branch to 3M
 python experiments/expert_learning.py --out runs/branch_turn --snippets SYN_turn_left-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 2 --profile fast \
-    --variant continued:branch_from=runs/long/fast/seed0 \
-    --variant lr1e-4:learning_rates=1e-4,branch_from=runs/long/fast/seed0
+    --variant continued:start_from=runs/long/fast/seed0 \
+    --variant lr1e-4:learning_rate=1e-4,start_from=runs/long/fast/seed0
 python experiments/expert_learning.py --out runs/branch_turn --snippets SYN_turn_left-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 1 --profile fast \
-    --variant lr1e-4:learning_rates=1e-4,branch_from=runs/long/fast/seed0
+    --variant lr1e-4:learning_rate=1e-4,start_from=runs/long/fast/seed0
 mocap-hierarchy expert eval runs/branch_turn/lr1e-4/seed0/SYN_turn_left-0-182 --episodes 1000
 
 # fast walking: the same branch from its 926k checkpoint
 python experiments/expert_learning.py --out runs/branch_more --snippets SYN_walk_fast-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 1 --profile fast \
-    --variant lr1e-4:learning_rates=1e-4,branch_from=runs/long/fast/seed0
+    --variant lr1e-4:learning_rate=1e-4,start_from=runs/long/fast/seed0
 mocap-hierarchy expert eval runs/branch_more/lr1e-4/seed0/SYN_walk_fast-0-182 --episodes 1000

@@ -3,7 +3,7 @@ r"""Does a go-to-target policy head for the target? Deterministic episodes of ea
 Runs each policy (``transfer train`` output on ``go_to_target``, with the task settings
 it was trained with, ``approach_reward`` included, though the figures leave it out)
 deterministically for ``--episodes`` episodes from seeds ``--seed``, ``--seed + 1``, ...
-and prints per policy (:class:`tasks.downstream.target_reaching.TargetReachingSummary`):
+and prints per policy (:class:`target_reaching_analysis.TargetReachingSummary`):
 control steps survived, the task's return, the fraction of episodes with any reward,
 the metres closed on the targets per episode, metres closed per second, and the mean
 cosine between the walker's motion and the direction to its target while it moves
@@ -28,7 +28,8 @@ from tqdm.auto import tqdm
 from foundation.atomic import write_json
 from foundation.config_cli import file_in_folder
 from hierarchy.transfer import POLICY_FILE, policy_env
-from tasks.downstream.target_reaching import TargetReachingSummary, run_episode, summarise
+
+from target_reaching_analysis import TargetReachingSummary, run_episode, summarise
 
 HEADER = (
     f"{'policy':<48}{'episodes':>9}{'steps':>7}{'return':>8}{'rewarded':>9}"
@@ -70,7 +71,9 @@ def prior_alone_summary(
         load_decoder(decoder),
         prior=load_latent_prior(decoder),  # the prior shipped with the named decoder
     )
-    zero = np.zeros(env.action_space.shape)
+    shape = env.action_space.shape
+    assert shape is not None  # a Box: the latent's size
+    zero = np.zeros(shape)
     bar = tqdm(seeds, desc=f"{decoder} prior alone", unit="episode", leave=False)
     return summarise([run_episode(env, lambda observation: zero, seed) for seed in bar])
 
@@ -80,7 +83,7 @@ def _limit(max_steps: int | None) -> dict:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     parser.add_argument("policies", nargs="+", type=Path, help="policy.safetensors files or transfer folders")
     parser.add_argument("--labels", nargs="+", default=None, help="one label per policy (default: its folder)")
     parser.add_argument("--episodes", type=int, default=50, help="episodes per policy (seeds --seed, --seed + 1, ...)")

@@ -20,14 +20,13 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import dataclasses
 from pathlib import Path
 
 from distill.experts.fanout import Job, run_jobs
 from foundation.config_cli import parse_field_setting
+from foundation.config_files import with_settings
 from hierarchy.pretrained import names_hint, resolve_decoder
-from hierarchy.transfer import train_transfer
-from hierarchy.transfer_config import TransferConfig
+from hierarchy.transfer import TransferConfig, train_transfer
 from mocap_hierarchy.commands.transfer import parse_settings
 from mocap_hierarchy.report import build_report
 from mocap_hierarchy.report.figures import transfer_bands
@@ -67,7 +66,7 @@ def main() -> None:
     jobs = []
     for task in args.tasks:
         for seed in args.seeds:
-            config = dataclasses.replace(TransferConfig(), **{**settings, "total_steps": args.steps, "seed": seed})
+            config = with_settings(TransferConfig(), {**settings, "total_steps": args.steps, "seed": seed})
             for mode, decoder in (("decoder", args.decoder), ("joints", None)):
                 folder = run_folder(args.out, task, mode, seed)
                 kwargs = {"task": task, "out": folder, "decoder": decoder, "config": config, "progress": False}

@@ -8,14 +8,21 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-python experiments/expert_learning.py --out runs/turn_select --snippets SYN_turn_left-0-182 --steps 3000000 \
+# Branching from a snapshot (snapshot_steps, branch_step) was removed on 2026-11-26, so this experiment runs at
+# commit 0e51b82, the last commit that had it: a git worktree of that commit in a temporary folder (added once),
+# its code first on the Python path (the installed packages are the same; nothing new is installed), its own
+# expert_learning.py and the flags of that time. The runs still go to this checkout's runs/.
+source experiments/shared/library_at_0e51b82.sh
+export PYTHONPATH="$OLD${PYTHONPATH:+:$PYTHONPATH}"
+
+python "$OLD/experiments/expert_learning.py" --out runs/turn_select --snippets SYN_turn_left-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 1 --profile fast-3m --seeds 1 \
     --variant "batch16k-from-2M-eval500:steps_per_update_steps=2000000,later_steps_per_update=16384,eval_episodes_steps=2000000,later_eval_episodes=500,snapshot_steps=2000000"
-python experiments/expert_learning.py --out runs/turn_select32k --snippets SYN_turn_left-0-182 --steps 3000000 \
+python "$OLD/experiments/expert_learning.py" --out runs/turn_select32k --snippets SYN_turn_left-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 1 --profile fast-3m --seeds 1 \
     --variant "batch32k-from-2M-eval500:steps_per_update_steps=2000000,later_steps_per_update=32768,eval_episodes_steps=2000000,later_eval_episodes=500,branch_from=runs/turn_select/batch16k-from-2M-eval500/seed1,branch_step=2000000"
 ln -sf ../turn_select32k/batch32k-from-2M-eval500 ../turn_batch/batch16k-from-2M runs/turn_select/
-python experiments/expert_learning.py --out runs/turn_select --replot --per-seed --snippets SYN_turn_left-0-182 \
+python "$OLD/experiments/expert_learning.py" --out runs/turn_select --replot --per-seed --snippets SYN_turn_left-0-182 \
     --steps 3000000 --seeds 1 --variant "batch16k-from-2M:steps_per_update_steps=2000000,later_steps_per_update=16384" \
     --variant "batch32k-from-2M-eval500:steps_per_update_steps=2000000,later_steps_per_update=32768,eval_episodes_steps=2000000,later_eval_episodes=500" \
     --span 2050000 2500000 --span 2550000 3020000

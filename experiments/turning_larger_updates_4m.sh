@@ -9,7 +9,7 @@ cd "$(dirname "$0")/.."
 
 python experiments/expert_learning.py --out runs/turn_kept --snippets SYN_turn_left-0-182 --steps 4000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 2 --profile fast-3m --seeds 1 \
-    --variant continued:branch_from=runs/turn_seeds/recipe/seed1 \
-    --variant batch16k:steps_per_update=16384,branch_from=runs/turn_seeds/recipe/seed1
+    --variant continued:start_from=runs/turn_seeds/recipe/seed1 \
+    --variant batch16k:steps_per_update=16384,start_from=runs/turn_seeds/recipe/seed1
 python experiments/expert_learning.py --out runs/turn_kept --replot --snippets SYN_turn_left-0-182 \
     --steps 4000000 --span 2950000 3450000 --span 3500000 4000000

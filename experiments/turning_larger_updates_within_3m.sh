@@ -10,7 +10,7 @@ cd "$(dirname "$0")/.."
 
 python experiments/expert_learning.py --out runs/turn_batch --snippets SYN_turn_left-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 2 --profile fast-3m --seeds 0 1 \
-    --variant "batch16k-from-2M:steps_per_update_steps=2000000,later_steps_per_update=16384"
+    --variant "batch16k-from-2M:steps_per_update=4096@0;16384@2M"
 python experiments/expert_learning.py --out runs/turn_batch_base --snippets SYN_turn_left-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 1 --profile fast-3m --seeds 0 --variant recipe
 ln -sfn ../turn_batch_base/recipe runs/turn_batch/recipe   # one figure for both
@@ -20,11 +20,11 @@ python experiments/expert_learning.py --out runs/turn_batch --replot --per-seed 
 
 python experiments/expert_learning.py --out runs/turn_batch14 --snippets SYN_turn_left-0-182 --steps 3000000 \
     --eval-every 50000 --eval-episodes 50 --jobs 2 --profile fast-3m --seeds 0 1 \
-    --variant "batch16k-from-1.4M:steps_per_update_steps=1400000,later_steps_per_update=16384"
+    --variant "batch16k-from-1.4M:steps_per_update=4096@0;16384@1.4M"
 ln -sf ../turn_batch/batch16k-from-2M ../turn_batch_base/recipe runs/turn_batch14/   # one figure for all three
 python experiments/expert_learning.py --out runs/turn_batch14 --replot --per-seed --snippets SYN_turn_left-0-182 \
     --steps 3000000 --variant recipe \
-    --variant "batch16k-from-2M:steps_per_update_steps=2000000,later_steps_per_update=16384" \
+    --variant "batch16k-from-2M:steps_per_update=4096@0;16384@2M" \
     --span 1450000 2000000 --span 2050000 2500000 --span 2550000 3010000
 
 # each kept expert over 1000 other episodes (the first 1000-episode score is final_evaluation in done.json)

@@ -9,8 +9,8 @@ cd "$(dirname "$0")/.."
 
 python experiments/expert_learning.py --out runs/turn_noise --snippets SYN_turn_left-0-182 \
     --steps 3000000 --eval-every 50000 --eval-episodes 50 --jobs 2 --profile fast-3m \
-    --variant "std0.2-at-1.4M:action_std_steps=1400000" \
-    --variant "std0.15-at-2.5M:action_std_steps=2000000;2500000,later_action_stds=0.2;0.15"
+    --variant "std0.2-at-1.4M:action_std=0.3@0;0.2@1.4M" \
+    --variant "std0.15-at-2.5M:action_std=0.3@0;0.2@2M;0.15@2.5M"
 python experiments/expert_learning.py --out runs/turn_noise --replot --snippets SYN_turn_left-0-182 \
     --steps 3000000 --span 1425000 2025000 --span 2025000 2525000 --span 2525000 3100000   # the table's means
 python experiments/expert_learning.py --out runs/turn_seeds --snippets SYN_turn_left-0-182 --steps 3000000 \

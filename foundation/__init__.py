@@ -31,15 +31,18 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from foundation.fingerprints import file_sha256, settings_fingerprint
     from foundation.lockstep import Lockstep, Transition
     from foundation.networks import ACTIVATIONS, hidden_stack, mlp
+    from foundation.ppo import PpoConfig
     from foundation.provenance import library_version, provenance
     from foundation.resume import SettingsMismatchError, check_same_settings, settings_record
-    from foundation.sb3 import PpoSettings, build_ppo, load_ppo, save_sb3, sb3_policy_layout
+    from foundation.sb3 import build_ppo, load_ppo, save_sb3, sb3_policy_layout
+    from foundation.schedule import Schedule
 
 __all__ = [
     "ACTIVATIONS",
     "ACTIVATION_NAMES",
     "Lockstep",
-    "PpoSettings",
+    "PpoConfig",
+    "Schedule",
     "SettingsMismatchError",
     "Transition",
     "add_dataclass_arguments",
@@ -69,7 +72,8 @@ __getattr__, __dir__ = lazy_exports(
         "ACTIVATIONS": "foundation.networks",
         "ACTIVATION_NAMES": "foundation.activations",
         "Lockstep": "foundation.lockstep",
-        "PpoSettings": "foundation.sb3",
+        "PpoConfig": "foundation.ppo",
+        "Schedule": "foundation.schedule",
         "SettingsMismatchError": "foundation.resume",
         "Transition": "foundation.lockstep",
         "add_dataclass_arguments": "foundation.config_cli",

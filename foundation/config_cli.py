@@ -22,6 +22,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
+from foundation.config_files import convert_value, nested_blocks, setting_names, with_settings
+from foundation.schedule import Schedule
+
 T = TypeVar("T")
 
 
@@ -42,12 +45,21 @@ def field_docs(cls: type) -> dict[str, str]:
             docs[current] += " " + line.strip()
         elif not line.strip() and current:
             current = None
-    return docs
+    return {name: _plain_text(text) for name, text in docs.items()}
+
+
+def _plain_text(text: str) -> str:
+    """Docstring markup as a terminal shows it: ``:class:`~a.b.C``` becomes ``C``, a doubled backtick a quote."""
+    text = re.sub(r":\w+:`~[\w.]*?(\w+)`", r"\1", text)
+    text = re.sub(r":\w+:`([^`]+)`", r"\1", text)
+    return text.replace("``", "`")
 
 
 def _scalar(kind: Any) -> Any:
     if kind is bool:
         return _parse_bool
+    if kind is Schedule:
+        return Schedule.parse
     return kind
 
 
@@ -64,19 +76,33 @@ def _parse_bool(text: str) -> bool:
 def add_dataclass_arguments(
     parser: argparse.ArgumentParser, cls: type, exclude: tuple[str, ...] = (), base: Any = None
 ) -> None:
-    """Adds one flag per field of ``cls`` (defaults shown in ``--help``).
+    """Adds one flag per setting of ``cls`` (defaults shown in ``--help``).
+
+    A field that is a config block itself (the PPO block) adds its settings' flags under
+    their own names, in a group of their own: ``--learning-rate``, not ``--ppo-learning-rate``.
+    A :class:`~foundation.schedule.Schedule` field takes its text form (``3e-4@0,1e-4@600k``).
 
     Args:
         parser: Receives the flags.
         cls: The config dataclass.
-        exclude: Fields that get no flag.
+        exclude: Settings that get no flag.
         base: An instance whose values are the defaults (instead of the class's).
     """
     hints = typing.get_type_hints(cls)
     docs = field_docs(cls)
+    blocks = nested_blocks(cls)
     group = parser.add_argument_group(cls.__name__)
     for f in dataclasses.fields(cls):
         if f.name in exclude:
+            continue
+        if base is not None:
+            default = getattr(base, f.name)
+        elif f.default is not dataclasses.MISSING:
+            default = f.default
+        else:
+            default = f.default_factory()  # type: ignore[misc]
+        if f.name in blocks:
+            add_dataclass_arguments(parser, blocks[f.name], exclude, default)
             continue
         kind = hints[f.name]
         args = typing.get_args(kind)
@@ -85,13 +111,7 @@ def add_dataclass_arguments(
             kind = next(a for a in args if a is not type(None))
             args = typing.get_args(kind)
         origin = typing.get_origin(kind)
-        if base is not None:
-            default = getattr(base, f.name)
-        elif f.default is not dataclasses.MISSING:
-            default = f.default
-        else:
-            default = f.default_factory()  # type: ignore[misc]
-        help_text = f"{docs.get(f.name, '')} (default: {default})"
+        help_text = f"{docs.get(f.name, '')} (default: {default})".replace("%", "%%")
         flag = "--" + f.name.replace("_", "-")
         if origin is tuple:
             group.add_argument(flag, nargs="+", type=_scalar(args[0]), default=None, help=help_text, dest=f.name)
@@ -104,52 +124,40 @@ def add_dataclass_arguments(
 
 
 def parse_field_setting(cls: type, text: str) -> tuple[str, Any]:
-    """``FIELD=VALUE`` for a field of the dataclass ``cls``, the value converted to the field's type.
+    """``FIELD=VALUE`` for a setting of the dataclass ``cls``, the value converted to the setting's type.
 
     Tuples are comma-separated (``hidden_layers=256,256``), booleans ``true``/``false``,
-    and an optional field takes ``none``.
+    schedules in their text form (``learning_rate=3e-4@0,1e-4@600k``), and an optional
+    setting takes ``none``. Settings of a nested block go by their own name.
 
     Raises:
-        ValueError: Not ``FIELD=VALUE``, an unknown field (the known ones are listed), or a value of another type.
+        ValueError: Not ``FIELD=VALUE``, an unknown setting (the known ones are listed), or a value of another type.
     """
     if "=" not in text:
         raise ValueError(f"setting {text!r}: expected FIELD=VALUE")
     name, raw = text.split("=", 1)
-    hints = typing.get_type_hints(cls)
-    if name not in hints:
-        known = ", ".join(f.name for f in dataclasses.fields(cls))
-        raise ValueError(f"setting {text!r}: {cls.__name__} has no field {name!r} (fields: {known})")
-    kind = hints[name]
-    args = typing.get_args(kind)
-    if type(None) in args:
-        if raw.lower() == "none":
-            return name, None
-        kind = next(a for a in args if a is not type(None))
-    if kind is bool:
-        try:
-            return name, _parse_bool(raw)
-        except argparse.ArgumentTypeError as error:
-            raise ValueError(f"setting {text!r}: {error}") from None
-    if typing.get_origin(kind) is tuple:
-        element = _scalar(typing.get_args(kind)[0])
-        return name, tuple(element(v) for v in raw.split(","))
-    return name, kind(raw)
+    homes = setting_names(cls)
+    if name not in homes:
+        raise ValueError(f"setting {text!r}: {cls.__name__} has no setting {name!r} (settings: {', '.join(homes)})")
+    block = homes[name]
+    owner = nested_blocks(cls)[block] if block else cls
+    return name, convert_value(typing.get_type_hints(owner)[name], raw, f"setting {text!r}")
 
 
 def given_fields(cls: type, namespace: argparse.Namespace) -> dict[str, Any]:
-    """``{field: value}`` of the ``cls`` fields whose flags were given (lists become tuples)."""
+    """``{setting: value}`` of the ``cls`` settings (nested ones too) whose flags were given (lists become tuples)."""
     values = {}
-    for f in dataclasses.fields(cls):
-        value = getattr(namespace, f.name, None)
+    for name in setting_names(cls):
+        value = getattr(namespace, name, None)
         if value is not None:
-            values[f.name] = tuple(value) if isinstance(value, list) else value
+            values[name] = tuple(value) if isinstance(value, list) else value
     return values
 
 
 def dataclass_from_args(cls: type[T], namespace: argparse.Namespace, base: T | None = None, **fixed: Any) -> T:
     """Builds ``cls`` from parsed flags; flags left unset keep the defaults (``base``'s values when given)."""
     values = {**given_fields(cls, namespace), **fixed}
-    return dataclasses.replace(base, **values) if base is not None else cls(**values)  # type: ignore[type-var]
+    return with_settings(base if base is not None else cls(), values)
 
 
 def file_in_folder(path: Path, name: str) -> Path:

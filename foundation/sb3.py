@@ -5,16 +5,14 @@ SB3 is imported inside the functions, so importing this module stays cheap.
 
 from __future__ import annotations
 
-import dataclasses
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from foundation.atomic import atomic_path
+from foundation.ppo import PpoConfig
 
 
 def save_sb3(
@@ -47,133 +45,119 @@ def sb3_policy_layout(model) -> tuple[dict[str, int], tuple[int, ...]]:
     return sizes, tuple(net_arch["pi"] if isinstance(net_arch, dict) else net_arch)
 
 
-@dataclass(frozen=True)
-class PpoSettings:
-    """stable-baselines3 PPO hyperparameters in the library's words (SB3's argument in brackets).
+def build_ppo(env: Any, ppo: PpoConfig, steps_per_env: int, initial_std: float, seed: int | None, device: str) -> Any:
+    """A new ``stable_baselines3.PPO`` with a ``MultiInputPolicy`` over ``env`` (the library's one PPO builder).
 
-    Attributes:
-        learning_rate: Adam step size, or a schedule of the remaining progress (``learning_rate``).
-        steps_per_env: Environment steps per environment between updates (``n_steps``).
-        minibatch_size: Minibatch size (``batch_size``).
-        epochs: Passes over each rollout (``n_epochs``).
-        gamma: Discount factor.
-        gae_lambda: GAE parameter.
-        clip_range: PPO clipping parameter.
-        max_grad_norm: Gradient norm clipping value.
-        hidden_layers: Hidden sizes of the separate policy and value MLPs (tanh).
+    The step size follows ``ppo.learning_rate`` by environment step (see :class:`StepSize`).
+
+    Args:
+        env: The (normalised) vectorised environments.
+        ppo: The PPO block of the job's config.
+        steps_per_env: Environment steps per environment between updates (SB3's ``n_steps``).
         initial_std: Initial standard deviation of the Gaussian policy (``log_std_init`` is its log).
-        entropy_coefficient: Entropy bonus (``ent_coef``).
-        target_kl: KL threshold that stops an update early, or None.
         seed: Seed of the policy and SB3's sampling.
         device: Torch device (``auto``, ``cpu``, ``cuda``).
     """
-
-    learning_rate: float | Callable[[float], float]
-    steps_per_env: int
-    minibatch_size: int
-    epochs: int
-    gamma: float
-    gae_lambda: float
-    clip_range: float
-    max_grad_norm: float
-    hidden_layers: tuple[int, ...]
-    initial_std: float
-    entropy_coefficient: float = 0.0
-    target_kl: float | None = None
-    seed: int | None = 0
-    device: str = "auto"
-
-    @classmethod
-    def from_config(cls, config: Any, **given: Any) -> PpoSettings:
-        """Settings from a job's config dataclass: every field of the same name, plus ``given`` (which wins)."""
-        shared = {
-            f.name: getattr(config, f.name)
-            for f in dataclasses.fields(cls)
-            if f.name not in given and hasattr(config, f.name)
-        }
-        return cls(**shared, **given)
-
-
-def build_ppo(env: Any, settings: PpoSettings) -> Any:
-    """A new ``stable_baselines3.PPO`` with a ``MultiInputPolicy`` over ``env`` (the library's one PPO builder)."""
     import torch
     from stable_baselines3 import PPO
 
-    layers = list(settings.hidden_layers)
-    return PPO(
+    layers = list(ppo.hidden_layers)
+    model = PPO(
         "MultiInputPolicy",
         env,
-        learning_rate=settings.learning_rate,
-        n_steps=settings.steps_per_env,
-        batch_size=settings.minibatch_size,
-        n_epochs=settings.epochs,
-        gamma=settings.gamma,
-        gae_lambda=settings.gae_lambda,
-        clip_range=settings.clip_range,
-        ent_coef=settings.entropy_coefficient,
-        max_grad_norm=settings.max_grad_norm,
-        target_kl=settings.target_kl,
+        learning_rate=ppo.learning_rate.start,
+        n_steps=steps_per_env,
+        batch_size=ppo.minibatch_size,
+        n_epochs=ppo.epochs,
+        gamma=ppo.gamma,
+        gae_lambda=ppo.gae_lambda,
+        clip_range=ppo.clip_range,
+        ent_coef=ppo.entropy_coefficient,
+        max_grad_norm=ppo.max_grad_norm,
+        target_kl=ppo.target_kl,
         policy_kwargs={
             "net_arch": {"pi": layers, "vf": list(layers)},
             "activation_fn": torch.nn.Tanh,
-            "log_std_init": math.log(settings.initial_std),
+            "log_std_init": math.log(initial_std),
         },
-        seed=settings.seed,
-        device=settings.device,
+        seed=seed,
+        device=device,
         verbose=0,
     )
+    model.lr_schedule = StepSize(model, ppo)
+    return model
 
 
-def load_ppo(model_path: Path, normaliser_path: Path, venv: Any, device: str, **custom: Any) -> Any:
+def load_ppo(
+    model_path: Path, normaliser_path: Path, venv: Any, ppo: PpoConfig, device: str, step_size: float | None = None
+) -> Any:
     """Resumes a run from its own :func:`save_sb3` files: the PPO, on the loaded ``VecNormalize`` around ``venv``.
 
     Args:
         model_path: The saved model (``.zip``).
         normaliser_path: The saved ``VecNormalize`` (``.pkl``); its statistics keep updating.
         venv: The raw vectorised environments to wrap.
+        ppo: The run's PPO block: the step size follows it again (it is not in the file).
         device: Torch device of the model.
-        **custom: Attributes to set instead of the saved ones (e.g. a learning-rate schedule left out of the file).
+        step_size: The adaptive rule's step size when the run stopped (``adaptive`` only).
     """
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecNormalize
 
     normaliser = VecNormalize.load(str(normaliser_path), venv)
     normaliser.training = True
-    return PPO.load(str(model_path), env=normaliser, device=device, **custom)
+    model = PPO.load(str(model_path), env=normaliser, device=device, learning_rate=ppo.learning_rate.start)
+    model.lr_schedule = StepSize(model, ppo, step_size)
+    return model
 
 
-ROLLOUT_SCHEDULE_ATTRIBUTE = "collect_rollouts"
-"""The instance attribute :func:`follow_rollout_schedule` sets: leave it out of saved models (``exclude``)."""
+SAVE_EXCLUDE = ["learning_rate", "lr_schedule"]
+"""Model attributes left out of saved models: the step size is rebuilt from the settings (:class:`StepSize`)."""
 
 
-def follow_rollout_schedule(model: Any, steps_per_env_at: Callable[[int], int]) -> None:
-    """Makes an SB3 on-policy ``model`` size each rollout by ``steps_per_env_at(model.num_timesteps)``.
+class StepSize:
+    """SB3's ``lr_schedule`` for a PPO block: its schedule at the model's environment step, or the adaptive rule.
 
-    SB3 fixes the rollout length (``n_steps``) when it builds the model. Here each rollout
-    asks the schedule first, at the step it starts from, and on a change the rollout
-    buffer is rebuilt at the new length before collecting, so an update never mixes two
-    sizes and the update that follows trains on the new buffer. Everything else (the
-    step-size schedule, which reads the progress through the whole budget, callbacks,
-    the last observations) is untouched. The schedule lives on the instance only:
-    save such a model with :data:`ROLLOUT_SCHEDULE_ATTRIBUTE` in ``exclude`` and call
-    this again after loading it.
+    SB3 asks it for the step size before every update, with the remaining fraction of the
+    ``learn`` call; the schedule is read at ``model.num_timesteps`` instead, so a run that
+    calls ``learn`` several times (or resumes) follows it by the step it is at. With the
+    ``adaptive`` rule, :meth:`adapt` after each update changes the value within [1e-6, 1e-2].
     """
-    collect = type(model).collect_rollouts
 
-    def collect_rollouts(env: Any, callback: Any, rollout_buffer: Any, n_rollout_steps: int) -> bool:
-        wanted = int(steps_per_env_at(int(model.num_timesteps)))
-        if wanted != model.n_steps:
-            _resize_rollouts(model, wanted)
-        return collect(model, env, callback, model.rollout_buffer, model.n_steps)
+    FACTOR = 1.5
+    LOW, HIGH = 1e-6, 1e-2
 
-    setattr(model, ROLLOUT_SCHEDULE_ATTRIBUTE, collect_rollouts)
+    def __init__(self, model: Any, ppo: PpoConfig, value: float | None = None) -> None:
+        self.model = model
+        self.ppo = ppo
+        self.value = float(value if value is not None else ppo.learning_rate.start)
+
+    def __call__(self, progress_remaining: float) -> float:
+        """The step size for the coming update."""
+        if self.ppo.schedule == "adaptive":
+            return self.value
+        return self.ppo.learning_rate.at(int(self.model.num_timesteps))
+
+    def adapt(self, kl: float) -> float:
+        """The adaptive rule after an update of KL divergence ``kl``; returns the new step size."""
+        if kl > 2.0 * self.ppo.desired_kl:
+            self.value = max(self.value / self.FACTOR, self.LOW)
+        elif kl < 0.5 * self.ppo.desired_kl:
+            self.value = min(self.value * self.FACTOR, self.HIGH)
+        return self.value
 
 
-def _resize_rollouts(model: Any, steps_per_env: int) -> None:
-    """A fresh rollout buffer of ``steps_per_env`` steps per environment, like the one SB3 built."""
-    old = model.rollout_buffer
+def resize_rollouts(model: Any, steps_per_env: int) -> None:
+    """Makes an SB3 on-policy ``model`` collect ``steps_per_env`` steps per environment from its next ``learn`` call.
+
+    SB3 fixes the rollout length (``n_steps``) when it builds the model and reads it, with
+    the buffer, at every rollout; between two ``learn`` calls both may change. A fresh buffer of
+    the new length is built like SB3's own (``rollout_buffer_class`` and ``rollout_buffer_kwargs``).
+    """
+    if steps_per_env == model.n_steps:
+        return
     model.n_steps = steps_per_env
-    model.rollout_buffer = type(old)(
+    model.rollout_buffer = model.rollout_buffer_class(
         steps_per_env,
         model.observation_space,
         model.action_space,

@@ -7,7 +7,7 @@
   latent, which high-level actions can be residuals on;
 * :mod:`hierarchy.task_policy`: the pickle-free high-level policy file;
 * :mod:`hierarchy.transfer`: high-level PPO on a registered task or your own env factory
-  (its settings in :mod:`hierarchy.transfer_config`);
+  (training, evaluation, the run folder; its settings in :mod:`hierarchy.transfer.config`);
 * :mod:`hierarchy.importers`: MoCapAct's checkpoints converted into decoder files.
 
 Importing this package loads nothing heavy: each name is imported when first
@@ -25,8 +25,9 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
     from hierarchy.latent_prior import LatentPrior, load_latent_prior
     from hierarchy.task_policy import TaskPolicy, load_task_policy
-    from hierarchy.transfer import EvaluationSummary, evaluate_transfer, track_speed, train_transfer
-    from hierarchy.transfer_config import TransferConfig
+    from hierarchy.transfer.config import TransferConfig
+    from hierarchy.transfer.evaluation import EvaluationSummary, evaluate_transfer, track_speed
+    from hierarchy.transfer.training import train_transfer
 
 __all__ = [
     "DecoderFileError",
@@ -53,18 +54,18 @@ __getattr__, __dir__ = lazy_exports(
         "DecoderFileError": "hierarchy.decoder",
         "DecoderMismatchError": "hierarchy.decoder",
         "DecoderSpec": "hierarchy.decoder",
-        "EvaluationSummary": "hierarchy.transfer",
+        "EvaluationSummary": "hierarchy.transfer.evaluation",
         "LatentActionEnv": "hierarchy.latent_env",
         "LatentActionVecEnv": "hierarchy.latent_env",
         "LatentDecoder": "hierarchy.decoder",
         "LatentPrior": "hierarchy.latent_prior",
         "TaskPolicy": "hierarchy.task_policy",
-        "TransferConfig": "hierarchy.transfer_config",
-        "evaluate_transfer": "hierarchy.transfer",
+        "TransferConfig": "hierarchy.transfer.config",
+        "evaluate_transfer": "hierarchy.transfer.evaluation",
         "load_decoder": "hierarchy.decoder",
         "load_latent_prior": "hierarchy.latent_prior",
         "load_task_policy": "hierarchy.task_policy",
-        "track_speed": "hierarchy.transfer",
-        "train_transfer": "hierarchy.transfer",
+        "track_speed": "hierarchy.transfer.evaluation",
+        "train_transfer": "hierarchy.transfer.training",
     },
 )

@@ -12,8 +12,10 @@
 ``tasks.make(name, **overrides)`` builds any registered task (built-in, registered
 at run time with :func:`register`, or installed through the ``mocap_hierarchy.tasks``
 entry-point group). This package imports nothing above :mod:`foundation`, and
-importing it is cheap: MuJoCo loads with the first environment, Gymnasium when it is
-first imported (the ids are registered then).
+importing it is cheap: MuJoCo and Gymnasium load with the first environment. The
+Gymnasium ids (``MocapHierarchy/VelocityControl-v0``, ...) are registered by
+``tasks.make`` and ``tasks.register``, by ``import tasks`` when Gymnasium is already
+imported, or by :func:`register_with_gymnasium`.
 """
 
 import ctypes.util
@@ -26,7 +28,7 @@ os.environ.setdefault("MUJOCO_GL", "egl" if ctypes.util.find_library("EGL") else
 
 from foundation.gl_backend import check_gl_backend
 from foundation.lazy import lazy_exports
-from tasks.registry import REGISTRY, TaskEntry, make, register, task_names
+from tasks.registry import REGISTRY, TaskEntry, make, register, register_with_gymnasium, task_names
 
 check_gl_backend()  # before anything imports MuJoCo
 
@@ -39,6 +41,7 @@ __all__ = [
     "WalkerTaskEnv",
     "make",
     "register",
+    "register_with_gymnasium",
     "task_names",
 ]
 

@@ -21,46 +21,29 @@ Plugins load on the first look-up of a name the registry does not know, or on
 :func:`task_names`; their Gymnasium ids exist from then on.
 
 Built-in entries name their classes as ``"module:Name"`` strings, resolved on
-first use, so importing the registry does not load MuJoCo. Nor does it load
-Gymnasium: the ids are registered as soon as Gymnasium is imported (at once if
-it already is, otherwise right after its own ``import``, wherever that happens),
-so ``import tasks`` then ``gymnasium.make(id)`` works as before.
+first use, so importing the registry loads neither MuJoCo nor Gymnasium. The
+Gymnasium ids are registered on first use too: by :func:`make` and :func:`register`,
+by :func:`register_with_gymnasium`, and by ``import tasks`` itself when Gymnasium is
+already imported (``import gymnasium`` then ``import tasks``, then
+``gymnasium.make(id)``).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import importlib
-import importlib.abc
-import importlib.machinery
-import importlib.util
 import re
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from importlib import metadata
-from types import ModuleType
 from typing import TYPE_CHECKING, Any
 
-if TYPE_CHECKING:  # Gymnasium loads when ids are registered (see the module docstring), not with the registry
+if TYPE_CHECKING:  # Gymnasium loads when the ids are registered (see the module docstring), not with the registry
     import gymnasium as gym
 
 GYM_NAMESPACE = "MocapHierarchy"
 ENTRY_POINT_GROUP = "mocap_hierarchy.tasks"
 """Entry-point group whose functions register an installed package's tasks."""
-
-_ALL_SYNTHETIC = (
-    "SYN_stand",
-    "SYN_wave",
-    "SYN_squat",
-    "SYN_march",
-    "SYN_walk_slow",
-    "SYN_walk_fast",
-    "SYN_turn_left",
-    "SYN_turn_right",
-    "SYN_walk_backward",
-)
-"""The synthetic library's clips (checked against ``SYNTHETIC_CLIPS`` by a test)."""
 
 
 def _resolve(reference: Any) -> Any:
@@ -89,7 +72,8 @@ class TaskEntry:
         config_type: The task's config dataclass (or ``"module:Name"``).
         build: Makes the environment from a config (or ``"module:Name"``).
         description: One line for humans.
-        defaults: Config fields that differ from the dataclass defaults.
+        defaults: Config fields that differ from the dataclass defaults, or a function
+            returning them (called each time a config is made).
     """
 
     name: str
@@ -97,7 +81,7 @@ class TaskEntry:
     config_type: type | str
     build: Callable[[Any], gym.Env] | str
     description: str
-    defaults: dict[str, Any] = field(default_factory=dict)
+    defaults: dict[str, Any] | Callable[[], dict[str, Any]] = field(default_factory=dict)
 
     def config(self, **overrides: Any) -> Any:
         """The entry's config with ``overrides`` applied (unknown fields raise)."""
@@ -108,11 +92,20 @@ class TaskEntry:
             raise UnknownSettingError(
                 f"task {self.name!r} has no setting(s) {unknown}; valid settings: {', '.join(sorted(valid))}"
             )
-        return dataclasses.replace(config_type(), **{**self.defaults, **overrides})
+        defaults = self.defaults() if callable(self.defaults) else self.defaults
+        return dataclasses.replace(config_type(), **{**defaults, **overrides})
 
     def make(self, **overrides: Any) -> gym.Env:
-        """Builds the environment with ``overrides`` applied to its config."""
+        """Builds the environment with ``overrides`` applied to its config (and registers the Gymnasium ids)."""
+        register_with_gymnasium()
         return _resolve(self.build)(self.config(**overrides))
+
+
+def _whole_synthetic_library() -> dict[str, Any]:
+    """The ``tracking`` task's snippets: every clip of the synthetic library (its module loads MuJoCo)."""
+    from tasks.clips.synthetic.library import SYNTHETIC_CLIPS
+
+    return {"snippets": tuple(recipe.clip_id for recipe in SYNTHETIC_CLIPS)}
 
 
 def _gym_id(name: str) -> str:
@@ -128,7 +121,7 @@ REGISTRY: dict[str, TaskEntry] = {
             "tasks.tracking.env:TrackingConfig",
             "tasks.tracking.env:ClipTrackingEnv",
             "multi-clip tracking of the synthetic library (ref_steps 1..5, every observable)",
-            {"snippets": _ALL_SYNTHETIC},
+            _whole_synthetic_library,
         ),
         TaskEntry(
             "tracking_expert",
@@ -207,7 +200,7 @@ def register(
     ):
         raise ValueError(f"task name {name!r} is taken ({existing.description or existing.build}); choose another name")
     REGISTRY[name] = entry
-    _register_gym_id(entry)
+    register_with_gymnasium()
     return entry
 
 
@@ -223,6 +216,8 @@ def _load_plugins() -> None:
     if _plugins_loaded:
         return
     _plugins_loaded = True
+    from importlib import metadata  # here: reading the installed packages' entry points costs an import of ~13 ms
+
     for plugin in metadata.entry_points(group=ENTRY_POINT_GROUP):
         try:
             plugin.load()()
@@ -261,61 +256,19 @@ def make(name: str, **overrides: Any) -> gym.Env:
     return entry(name).make(**overrides)
 
 
-def _register_gym_id(task: TaskEntry) -> None:
+def register_with_gymnasium() -> None:
+    """Registers every task under its Gymnasium id (imports Gymnasium; idempotent).
+
+    :func:`make` and :func:`register` call it, and so does ``import tasks`` when
+    Gymnasium is already imported; call it yourself to use ``gymnasium.make(id)``
+    after importing ``tasks`` first and Gymnasium second, with no task made yet.
+    """
     import gymnasium as gym
 
-    if task.gym_id not in gym.registry:
-        gym.register(id=task.gym_id, entry_point="tasks.registry:make", kwargs={"name": task.name})
-
-
-def register_with_gymnasium() -> None:
-    """Registers every task under its Gymnasium id (idempotent; done as soon as Gymnasium is imported)."""
     for task in REGISTRY.values():
-        _register_gym_id(task)
+        if task.gym_id not in gym.registry:
+            gym.register(id=task.gym_id, entry_point="tasks.registry:make", kwargs={"name": task.name})
 
 
-class _RegisterAfterGymnasium(importlib.abc.MetaPathFinder):
-    """Finds ``gymnasium`` like the other finders, with a loader that registers every id once it has run."""
-
-    def find_spec(
-        self, fullname: str, path: Sequence[str] | None = None, target: ModuleType | None = None
-    ) -> importlib.machinery.ModuleSpec | None:
-        """The normal spec of ``gymnasium`` (its loader wrapped); None for every other module."""
-        if fullname != "gymnasium":
-            return None
-        if self in sys.meta_path:  # one use: the nested look-up below, and any later one, skips this finder
-            sys.meta_path.remove(self)
-        spec = importlib.util.find_spec(fullname)
-        if spec is not None and spec.loader is not None:
-            spec.loader = _ThenRegister(spec.loader)
-        return spec
-
-
-class _ThenRegister(importlib.abc.Loader):
-    """Gymnasium's own loader, then :func:`register_with_gymnasium` (anything else goes to the loader)."""
-
-    def __init__(self, loader: importlib.abc.Loader) -> None:
-        self._loader = loader
-
-    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType | None:
-        """The wrapped loader's module."""
-        return self._loader.create_module(spec)
-
-    def exec_module(self, module: ModuleType) -> None:
-        """Runs ``gymnasium/__init__.py``, then registers the ids."""
-        self._loader.exec_module(module)
-        register_with_gymnasium()
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._loader, name)
-
-
-def _register_when_gymnasium_loads() -> None:
-    """Registers the ids now if Gymnasium is loaded, otherwise right after it is first imported."""
-    if "gymnasium" in sys.modules:
-        register_with_gymnasium()
-    elif not any(isinstance(finder, _RegisterAfterGymnasium) for finder in sys.meta_path):
-        sys.meta_path.insert(0, _RegisterAfterGymnasium())
-
-
-_register_when_gymnasium_loads()
+if "gymnasium" in sys.modules:  # already paid for: the ids cost nothing more now
+    register_with_gymnasium()

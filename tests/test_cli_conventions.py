@@ -39,7 +39,7 @@ LIGHT_HELP = [
 ]
 """Help that needs no heavy module, commands whose flags come from config dataclasses included: those
 configs live in light modules (``distill/trainer_config.py``, ``distill/*/config.py``,
-``hierarchy/transfer_config.py``, ``mocap_hierarchy/quickstart/config.py``)."""
+``hierarchy/transfer/config.py``, ``mocap_hierarchy/quickstart/config.py``)."""
 
 
 def every_parser(parser: argparse.ArgumentParser, path: tuple[str, ...] = ()) -> Iterator[tuple[str, ...]]:

@@ -201,9 +201,9 @@ def test_model_cards_are_rendered_from_the_shipped_files():
 def test_configs_reference_refuses_a_field_without_a_meaning(monkeypatch):
     import types
 
-    from foundation.sb3 import PpoSettings
+    from foundation.ppo import PpoConfig
 
-    assert generated_pages.attribute_docs(PpoSettings)["gamma"] == "Discount factor."
+    assert generated_pages.attribute_docs(PpoConfig)["gamma"] == "Discount factor."
     module = types.ModuleType("half_documented")
     module.HalfDocumented = HalfDocumented  # type: ignore[attr-defined]
     monkeypatch.setitem(sys.modules, "half_documented", module)

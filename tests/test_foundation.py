@@ -180,14 +180,17 @@ def test_a_first_stop_signal_waits_for_the_loop_and_a_second_stops_at_once():
 
 def test_field_settings_parse_to_the_fields_types():
     from foundation.config_cli import parse_field_setting
-    from hierarchy.transfer_config import TransferConfig
+    from foundation.schedule import Schedule
+    from hierarchy.transfer.config import TransferConfig
 
+    # the PPO block's settings go by their own names, as at the top of the config
     assert parse_field_setting(TransferConfig, "hidden_layers=256,128") == ("hidden_layers", (256, 128))
-    assert parse_field_setting(TransferConfig, "learning_rate=3e-4") == ("learning_rate", 3e-4)
+    assert parse_field_setting(TransferConfig, "learning_rate=3e-4") == ("learning_rate", Schedule.constant(3e-4))
+    assert parse_field_setting(TransferConfig, "learning_rate=3e-4@0,1e-4@600k")[1].change_steps() == (600_000,)
     assert parse_field_setting(TransferConfig, "initial_std=none") == ("initial_std", None)
     assert parse_field_setting(TransferConfig, "initial_std=1.5") == ("initial_std", 1.5)
     assert parse_field_setting(TransferConfig, "normalize_reward=false") == ("normalize_reward", False)
-    with pytest.raises(ValueError, match=r"has no field 'hiden_layers'.*hidden_layers"):
+    with pytest.raises(ValueError, match=r"has no setting 'hiden_layers'.*hidden_layers"):
         parse_field_setting(TransferConfig, "hiden_layers=1")
     with pytest.raises(ValueError, match="expected true or false"):
         parse_field_setting(TransferConfig, "normalize_reward=maybe")

@@ -143,6 +143,29 @@ def test_runs_with_other_ppo_settings_are_variants_and_their_steps_count_control
     assert plot_transfer_curves(runs, tmp_path / "curves.png").is_file()
 
 
+def test_runs_recorded_before_the_ppo_block_are_seeds_of_the_same_setting(tmp_path):
+    from foundation.config_files import config_to_dict, with_settings
+    from hierarchy.transfer import TransferConfig
+
+    def recorded(learning_rate: float) -> dict:
+        config = config_to_dict(with_settings(TransferConfig(n_envs=8), {"learning_rate": learning_rate}))
+        del config["seed"]  # the run's own
+        return config
+
+    nested = recorded(3e-4)
+    ppo = {k: v for k, v in nested["ppo"].items() if k not in ("schedule", "desired_kl")}
+    flat = {**{k: v for k, v in nested.items() if k != "ppo"}, **ppo, "learning_rate": 3e-4}  # the earlier form
+    _transfer(tmp_path / "old" / "seed0", "velocity_control", True, 0, [(100, 1.0)], config=flat)
+    _transfer(tmp_path / "new" / "seed1", "velocity_control", True, 1, [(100, 3.0)], config=nested)
+    _transfer(tmp_path / "slow" / "seed0", "velocity_control", True, 0, [(100, 9.0)], config=recorded(1e-4))
+    bands = transfer_bands(find_run_contents(tmp_path).transfer)
+    assert set(bands) == {
+        "velocity_control on decoder [learning_rate=3e-4]",
+        "velocity_control on decoder [learning_rate=1e-4]",
+    }
+    assert list(bands["velocity_control on decoder [learning_rate=3e-4]"]["mean"]) == [2.0]  # two seeds
+
+
 def test_runs_on_different_decoders_are_settings_of_their_own_not_more_seeds(tmp_path):
     for seed in (0, 1):
         _transfer(tmp_path / "v1" / f"seed{seed}", "velocity_control", "synthetic-v1", seed, [(100, 1.0 + seed)])

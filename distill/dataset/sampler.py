@@ -225,11 +225,15 @@ class WindowDataset(Dataset):
         """Per-group observation mean and standard deviation (dataset-wide)."""
         return self._mean, self._std
 
-    def __getitem__(self, index: int) -> dict[str, np.ndarray]:
+    def window_location(self, index: int) -> tuple[int, int, int]:
+        """Where window ``index`` lies: ``(episode number, first step in the episode, its row among all actions)``."""
         episode = int(self._window_episode[index])
         start = int(self._window_start[index])
+        return episode, start, int(self._act_offset[episode]) + start
+
+    def __getitem__(self, index: int) -> dict[str, np.ndarray]:
+        episode, start, act = self.window_location(index)
         window = self.config.window
-        act = self._act_offset[episode] + start
         out: dict[str, np.ndarray] = {}
         if self._memory is not None:
             obs = self._obs_offset[episode] + start

@@ -5,7 +5,7 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
-    from distill.experts.config import EvaluationConfig, ExpertConfig, PiecewiseLearningRate
+    from distill.experts.config import EvaluationConfig, ExpertConfig, expert_profile
     from distill.experts.evaluation import EvaluationResult, evaluate_policy
     from distill.experts.fanout import Job, JobReport, run_jobs, summarise
     from distill.experts.files import ExpertDir, ExpertFilesError, expert_dir_for, find_experts
@@ -26,12 +26,12 @@ __all__ = [
     "ExpertSpec",
     "Job",
     "JobReport",
-    "PiecewiseLearningRate",
     "TrainingResult",
     "convert_sb3_expert",
     "evaluate_policy",
     "expert_dir_for",
     "expert_jobs",
+    "expert_profile",
     "find_experts",
     "load_expert",
     "policy_from_sb3",
@@ -55,7 +55,7 @@ __getattr__, __dir__ = lazy_exports(
         "ExpertSpec": "distill.experts.policy",
         "Job": "distill.experts.fanout",
         "JobReport": "distill.experts.fanout",
-        "PiecewiseLearningRate": "distill.experts.config",
+        "expert_profile": "distill.experts.config",
         "TrainingResult": "distill.experts.training",
         "convert_sb3_expert": "distill.experts.sb3_import",
         "evaluate_policy": "distill.experts.evaluation",

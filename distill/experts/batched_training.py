@@ -19,222 +19,31 @@ from __future__ import annotations
 
 import shutil
 import time
-from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import torch
 from tensordict import TensorDict
 
 from distill.experts.batched_evaluation import evaluate_policies_batched
+from distill.experts.batched_learner import (
+    Learner,
+    RunningMoments,
+    build_algorithm,
+    export_policy,
+    load_checkpoint,
+    save_checkpoint,
+)
 from distill.experts.config import BatchedExpertConfig, EvaluationConfig
 from distill.experts.evaluation import evaluate_policy, training_task
-from distill.experts.files import ExpertDir, expert_dir_for, write_clip_info
-from distill.experts.policy import ExpertPolicy, ExpertSpec
+from distill.experts.files import expert_dir_for, write_clip_info
+from distill.experts.policy import ExpertPolicy
 from distill.experts.sb3_export import write_sb3_files
 from foundation.atomic import write_json
-from foundation.described_file import read_described, write_described
+from foundation.config_files import config_to_dict
 from foundation.interrupts import stop_requests
-from foundation.provenance import provenance
-from foundation.resume import check_same_settings
 from tasks.clips.snippets import parse_snippet_id
 from tasks.tracking.batched import BatchedTrackingEnv
-
-CHECKPOINT_FORMAT = "mocap_hierarchy.batched_expert_checkpoint"
-CHECKPOINT_VERSION = 1
-OBS_CLIP = 10.0
-OBS_EPSILON = 1e-8
-"""``VecNormalize``'s defaults, so the expert file describes the normalisation exactly."""
-
-
-class RunningMoments:
-    """Running mean and variance of observation rows (``VecNormalize``'s update rule), on one device."""
-
-    def __init__(self, size: int, device: torch.device) -> None:
-        self.mean = torch.zeros(size, dtype=torch.float64, device=device)
-        self.var = torch.ones(size, dtype=torch.float64, device=device)
-        self.count = torch.tensor(1e-4, dtype=torch.float64, device=device)
-
-    def update(self, rows: torch.Tensor) -> None:
-        """Folds a batch ``(B, size)`` into the moments."""
-        rows = rows.double()
-        batch_mean, batch_var, batch_count = rows.mean(0), rows.var(0, unbiased=False), rows.shape[0]
-        delta = batch_mean - self.mean
-        total = self.count + batch_count
-        self.mean = self.mean + delta * batch_count / total
-        self.var = (
-            self.var * self.count + batch_var * batch_count + delta.square() * self.count * batch_count / total
-        ) / total
-        self.count = total
-
-    def normalise(self, rows: torch.Tensor) -> torch.Tensor:
-        """``clip((x - mean) / sqrt(var + eps), -10, 10)`` as float32."""
-        scaled = (rows.double() - self.mean) / torch.sqrt(self.var + OBS_EPSILON)
-        return scaled.clamp(-OBS_CLIP, OBS_CLIP).float()
-
-
-@dataclass
-class _Learner:
-    """One snippet's policy, its worlds and its bookkeeping."""
-
-    snippet: str
-    expert: ExpertDir
-    rows: slice
-    ppo: Any  # rsl_rl.algorithms.PPO (imported with the gpu extra only)
-    moments: RunningMoments
-    steps: int = 0
-    next_eval: int = 0
-    next_checkpoint: int = 0
-    best: dict | None = None
-    evaluations: list[dict] = field(default_factory=list)
-    episode_sums: torch.Tensor | None = None  # normalised reward, normalised length, episodes since the last record
-
-
-def _settings(config: BatchedExpertConfig) -> dict:
-    """Settings a checkpoint must share to be resumed (not the budget or the machine)."""
-    ignore = {"total_steps", "device", "eval_every", "eval_episodes", "final_eval_episodes", "checkpoint_every"}
-    return {k: v for k, v in asdict(config).items() if k not in ignore}
-
-
-def _build_algorithm(config: BatchedExpertConfig, observation_size: int, device: torch.device):
-    from rsl_rl.algorithms import PPO
-    from rsl_rl.models import MLPModel
-    from rsl_rl.storage import RolloutStorage
-
-    example = TensorDict(
-        {"policy": torch.zeros(config.worlds_per_snippet, observation_size)}, batch_size=[config.worlds_per_snippet]
-    )
-    groups = {"actor": ["policy"], "critic": ["policy"]}
-    gaussian = {"class_name": "GaussianDistribution", "init_std": config.action_std, "learn_std": False}
-    layers = list(config.hidden_layers)
-    actor = MLPModel(example, groups, "actor", 56, layers, "tanh", distribution_cfg=gaussian)
-    critic = MLPModel(example, groups, "critic", 1, layers, "tanh")
-    storage = RolloutStorage(
-        "rl", config.worlds_per_snippet, config.steps_per_env, example.to(device), [56], str(device)
-    )
-    return PPO(
-        actor,
-        critic,
-        storage,
-        num_learning_epochs=config.epochs,
-        num_mini_batches=config.minibatches,
-        clip_param=config.clip_range,
-        gamma=config.gamma,
-        lam=config.gae_lambda,
-        entropy_coef=0.0,
-        learning_rate=config.learning_rate,
-        max_grad_norm=config.max_grad_norm,
-        schedule=config.schedule,
-        desired_kl=config.desired_kl,
-        device=str(device),
-    )
-
-
-def export_policy(
-    learner: _Learner, keys: list[str], sizes: dict[str, int], config: BatchedExpertConfig
-) -> ExpertPolicy:
-    """The learner's current policy as a frozen :class:`ExpertPolicy` (same outputs, library format)."""
-    spec = ExpertSpec(
-        snippet=learner.snippet,
-        observation_sizes={k: sizes[k] for k in keys},
-        hidden_layers=tuple(config.hidden_layers),
-        action_size=56,
-        action_std=config.action_std,
-        residual_actions=config.residual_actions,
-        obs_clip=OBS_CLIP,
-        obs_epsilon=OBS_EPSILON,
-        return_variance=1.0,  # rsl_rl's values are in reward units already
-        reward_epsilon=0.0,
-        gamma=config.gamma,
-        gae_lambda=config.gae_lambda,
-        provenance=provenance(trained_steps=learner.steps, engine="warp", trainer="rsl_rl PPO"),
-    )
-    offsets = np.cumsum([0, *(sizes[k] for k in keys)])
-    mean, var = learner.moments.mean.cpu().numpy(), learner.moments.var.cpu().numpy()
-    policy = ExpertPolicy(
-        spec,
-        {k: mean[offsets[i] : offsets[i + 1]] for i, k in enumerate(keys)},
-        {k: var[offsets[i] : offsets[i + 1]] for i, k in enumerate(keys)},
-    )
-    ppo = learner.ppo
-    last = 2 * len(config.hidden_layers)
-    state = {}
-    for ours, network in (("policy_net", ppo.actor), ("value_net", ppo.critic)):
-        weights = network.mlp.state_dict()
-        head = "action" if ours == "policy_net" else "value"
-        for name, value in weights.items():
-            index, kind = name.split(".")
-            target = f"{head}.{kind}" if int(index) == last else f"{ours}.{index}.{kind}"
-            state[target] = value.detach().cpu().float()
-    policy.load_state_dict(state)
-    return policy
-
-
-# Checkpoints ------------------------------------------------------------------
-
-
-def _checkpoint_path(expert: ExpertDir) -> Path:
-    return expert.checkpoint_dir / "batched.safetensors"
-
-
-def _save_checkpoint(learner: _Learner, config: BatchedExpertConfig) -> None:
-    ppo = learner.ppo
-    tensors = {f"actor.{k}": v for k, v in ppo.actor.state_dict().items()}
-    tensors.update({f"critic.{k}": v for k, v in ppo.critic.state_dict().items()})
-    tensors.update(
-        {
-            "moments.mean": learner.moments.mean,
-            "moments.var": learner.moments.var,
-            "moments.count": learner.moments.count,
-        }
-    )
-    optimizer = ppo.optimizer.state_dict()
-    for index, values in optimizer["state"].items():
-        for name, value in values.items():
-            tensors[f"optimizer.{index}.{name}"] = torch.as_tensor(value)
-    description = {
-        "settings": _settings(config),
-        "steps": learner.steps,
-        "next_eval": learner.next_eval,
-        "next_checkpoint": learner.next_checkpoint,
-        "best": learner.best,
-        "evaluations": learner.evaluations,
-        "learning_rate": ppo.learning_rate,
-        "param_groups": optimizer["param_groups"],
-    }
-    write_described(_checkpoint_path(learner.expert), tensors, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, description)
-
-
-def _load_checkpoint(learner: _Learner, config: BatchedExpertConfig) -> bool:
-    path = _checkpoint_path(learner.expert)
-    if not path.is_file():
-        return False
-    description, tensors = read_described(path, CHECKPOINT_FORMAT, CHECKPOINT_VERSION, "batched expert checkpoint")
-    check_same_settings(description, _settings(config), str(path), "expert settings")
-    ppo = learner.ppo
-    ppo.actor.load_state_dict({k[6:]: v for k, v in tensors.items() if k.startswith("actor.")})
-    ppo.critic.load_state_dict({k[7:]: v for k, v in tensors.items() if k.startswith("critic.")})
-    device = learner.moments.mean.device
-    learner.moments.mean = tensors["moments.mean"].to(device)
-    learner.moments.var = tensors["moments.var"].to(device)
-    learner.moments.count = tensors["moments.count"].to(device)
-    state: dict[int, dict[str, torch.Tensor]] = {}
-    for key, value in tensors.items():
-        if key.startswith("optimizer."):
-            _, index, name = key.split(".", 2)
-            state.setdefault(int(index), {})[name] = value
-    ppo.optimizer.load_state_dict({"state": state, "param_groups": description["param_groups"]})
-    ppo.learning_rate = description["learning_rate"]
-    learner.steps = int(description["steps"])
-    learner.next_eval = int(description["next_eval"])
-    learner.next_checkpoint = int(description["next_checkpoint"])
-    learner.best = description["best"]
-    learner.evaluations = list(description["evaluations"])
-    return True
-
-
-# Training ---------------------------------------------------------------------
 
 
 def train_experts_batched(
@@ -282,15 +91,15 @@ def train_experts_batched(
         expert = expert_dir_for(out, snippet)
         expert.root.mkdir(parents=True, exist_ok=True)
         write_clip_info(expert.root, parse_snippet_id(snippet), env.reference_env.references[index].num_frames)
-        write_json(expert.config, {"engine": "warp", **asdict(config)})
-        learner = _Learner(
+        write_json(expert.config, {"engine": "warp", **config_to_dict(config)})
+        learner = Learner(
             snippet,
             expert,
             slice(index * per, (index + 1) * per),
-            _build_algorithm(config, size, env.device),
+            build_algorithm(config, size, env.device),
             RunningMoments(size, env.device),
         )
-        if _load_checkpoint(learner, config) and progress:
+        if load_checkpoint(learner, config) and progress:
             print(f"resuming {snippet} from step {learner.steps}", flush=True)
         learners.append(learner)
     finished: dict[str, dict] = {}
@@ -306,7 +115,7 @@ def train_experts_batched(
             if stop.requested:
                 for learner in learners:
                     if learner.steps < config.total_steps:
-                        _save_checkpoint(learner, config)
+                        save_checkpoint(learner, config)
                 least = min(learner.steps for learner in learners)
                 raise stop.stop(
                     f"expert train-many (warp): stopped at step {least} of {config.total_steps}",
@@ -315,9 +124,13 @@ def train_experts_batched(
     return finished
 
 
-def _collect(env: BatchedTrackingEnv, learners: list[_Learner], observations, keys, config) -> dict:
+def _collect(env: BatchedTrackingEnv, learners: list[Learner], observations, keys, config) -> dict:
     """``steps_per_env`` steps of every world; each learner stores its own transitions."""
     actions = torch.zeros(env.num_worlds, env.action_size, device=env.device)
+    if config.action_std.changes:  # the fixed noise of this rollout
+        for learner in learners:
+            with torch.no_grad():
+                learner.ppo.actor.distribution.std_param.fill_(config.action_std.at(learner.steps))
     for _ in range(config.steps_per_env):
         flat = env.flat_observations(observations, keys)
         inputs = []
@@ -345,7 +158,7 @@ def _collect(env: BatchedTrackingEnv, learners: list[_Learner], observations, ke
     return observations
 
 
-def _update(learner: _Learner, env: BatchedTrackingEnv, observations, keys, config: BatchedExpertConfig) -> None:
+def _update(learner: Learner, env: BatchedTrackingEnv, observations, keys, config: BatchedExpertConfig) -> None:
     ppo = learner.ppo
     if learner.steps >= config.total_steps:
         ppo.storage.clear()
@@ -354,6 +167,10 @@ def _update(learner: _Learner, env: BatchedTrackingEnv, observations, keys, conf
     batch = TensorDict({"policy": learner.moments.normalise(rows)}, batch_size=[rows.shape[0]])
     with torch.no_grad():
         ppo.compute_returns(batch)
+    if config.ppo.schedule == "fixed" and config.ppo.learning_rate.changes:  # rsl_rl keeps a fixed one constant
+        ppo.learning_rate = config.ppo.learning_rate.at(learner.steps)
+        for group in ppo.optimizer.param_groups:
+            group["lr"] = ppo.learning_rate
     ppo.update()
     learner.steps += config.steps_per_update
 
@@ -364,7 +181,7 @@ def _record(learners, env, keys, config, finished, progress, started) -> None:
     for learner in learners:
         if learner.steps >= learner.next_checkpoint and learner.steps < config.total_steps:
             learner.next_checkpoint = learner.steps + config.checkpoint_every
-            _save_checkpoint(learner, config)
+            save_checkpoint(learner, config)
         if learner.steps >= config.total_steps and learner.snippet not in finished and not learner.expert.is_done():
             finished[learner.snippet] = _finish(learner, env, keys, config)
 
@@ -376,15 +193,19 @@ def _evaluate_due(learners, env, keys, config, progress, started) -> None:
         return
     policies = {learner.snippet: export_policy(learner, keys, env.observation_sizes, config) for learner in due}
     results = evaluate_policies_batched(
-        policies, _evaluation_config(config), env.config.clips, str(env.device), config.worlds_per_snippet
+        policies,
+        _evaluation_config(config, config.eval_episodes.at(due[0].steps)),
+        env.config.clips,
+        str(env.device),
+        config.worlds_per_snippet,
     )
     for learner in due:
         _keep_evaluation(learner, results[learner.snippet], policies[learner.snippet], config, progress, started)
 
 
-def _evaluation_config(config: BatchedExpertConfig, episodes: int | None = None) -> EvaluationConfig:
+def _evaluation_config(config: BatchedExpertConfig, episodes: float) -> EvaluationConfig:
     return EvaluationConfig(
-        episodes=config.eval_episodes if episodes is None else episodes,
+        episodes=int(episodes),
         init="random",
         min_steps=config.eval_min_steps,
         action_noise=config.eval_action_noise,
@@ -393,7 +214,7 @@ def _evaluation_config(config: BatchedExpertConfig, episodes: int | None = None)
     )
 
 
-def _keep_evaluation(learner: _Learner, result, policy: ExpertPolicy, config, progress: bool, started: float) -> None:
+def _keep_evaluation(learner: Learner, result, policy: ExpertPolicy, config, progress: bool, started: float) -> None:
     """Appends an evaluation record (with the training episodes' scores) and saves a new best policy."""
     record = {
         "steps": learner.steps,
@@ -427,7 +248,7 @@ def _keep_evaluation(learner: _Learner, result, policy: ExpertPolicy, config, pr
         )
 
 
-def _finish(learner: _Learner, env: BatchedTrackingEnv, keys, config: BatchedExpertConfig) -> dict:
+def _finish(learner: Learner, env: BatchedTrackingEnv, keys, config: BatchedExpertConfig) -> dict:
     """Writes the best policy's A.1 files, the paper's CPU evaluation and ``done.json``."""
     expert = learner.expert
     if not expert.sidecar.is_file():
@@ -441,7 +262,7 @@ def _finish(learner: _Learner, env: BatchedTrackingEnv, keys, config: BatchedExp
         "best": learner.best,
         "stop_reason": "budget",
         "engine": "warp",
-        "config": asdict(config),
+        "config": config_to_dict(config),
     }
     if config.final_eval_episodes > 0:  # the best policy once more on each engine, same protocol
         protocol = _evaluation_config(config, config.final_eval_episodes)

@@ -12,7 +12,6 @@ One directory per snippet expert, named by the snippet id::
         eval_rsi/evaluations.json       evaluation history during training
         config.json                     the ExpertConfig used
         checkpoint/                     resumable training state (removed once done)
-        snapshots/<STEP>/               resumable states kept at chosen steps (snapshot_steps; kept)
         done.json                       written when training has finished
 
 ``best_model.zip`` and ``vecnormalize.pkl`` load with stable-baselines3's own
@@ -47,7 +46,7 @@ class ExpertFilesError(FileNotFoundError):
 
 @dataclass(frozen=True)
 class ResumableFiles:
-    """The files of one resumable training state (a checkpoint or a snapshot) in ``directory``."""
+    """The files of one resumable training state (a checkpoint) in ``directory``."""
 
     directory: Path
 
@@ -137,22 +136,6 @@ class ExpertDir:
     def checkpoint(self) -> ResumableFiles:
         """The checkpoint's files: model, normaliser and (written last) training-callback state."""
         return ResumableFiles(self.checkpoint_dir)
-
-    @property
-    def snapshots_dir(self) -> Path:
-        """Resumable states kept at chosen steps (``ExpertConfig.snapshot_steps``); training leaves them."""
-        return self.root / "snapshots"
-
-    def snapshot(self, steps: int) -> ResumableFiles:
-        """The snapshot taken for step ``steps``: the same three files as ``checkpoint/``."""
-        return ResumableFiles(self.snapshots_dir / str(steps))
-
-    def snapshot_steps(self) -> list[int]:
-        """The steps of the complete snapshots on disk (those whose state file was written), in order."""
-        if not self.snapshots_dir.is_dir():
-            return []
-        found = (int(d.name) for d in self.snapshots_dir.iterdir() if d.name.isdigit())
-        return sorted(s for s in found if self.snapshot(s).state.is_file())
 
     @property
     def done(self) -> Path:

@@ -11,7 +11,9 @@ from __future__ import annotations
 
 from distill.experts.files import ExpertDir
 from distill.experts.policy import ExpertPolicy, sb3_name
-from foundation.sb3 import PpoSettings, build_ppo, save_sb3
+from foundation.ppo import PpoConfig
+from foundation.sb3 import SAVE_EXCLUDE, build_ppo, save_sb3
+from foundation.schedule import Schedule
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 
 
@@ -40,23 +42,20 @@ def write_sb3_files(policy: ExpertPolicy, expert: ExpertDir, tracking: TrackingC
     for key in policy.keys:
         statistics[key].mean = means[key]
         statistics[key].var = variances[key]
-    settings = PpoSettings(
-        learning_rate=3e-4,
-        steps_per_env=64,
-        minibatch_size=64,
+    ppo = PpoConfig(
+        learning_rate=Schedule.constant(3e-4),
         epochs=1,
+        minibatch_size=64,
+        clip_range=0.2,
         gamma=spec.gamma,
         gae_lambda=spec.gae_lambda,
-        clip_range=0.2,
         max_grad_norm=1.0,
         hidden_layers=spec.hidden_layers,
-        initial_std=spec.action_std,
-        device="cpu",
     )
-    model = build_ppo(venv, settings)
+    model = build_ppo(venv, ppo, steps_per_env=64, initial_std=spec.action_std, seed=0, device="cpu")
     weights = model.policy.state_dict()  # log_std is already log(action_std): build_ppo's initial_std
     for name, value in policy.state_dict().items():
         weights[sb3_name(name)] = value.detach().clone()
     model.policy.load_state_dict(weights)
-    save_sb3(model, venv, expert.best_model, expert.vecnormalize)
+    save_sb3(model, venv, expert.best_model, expert.vecnormalize, SAVE_EXCLUDE)
     venv.close()

@@ -20,6 +20,7 @@ import inspect
 import os
 import re
 import sys
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
@@ -41,8 +42,8 @@ CONFIG_CLASSES = (
     "distill.npmp.config.LatentPriorConfig",
     "distill.gpt.config.GptConfig",
     "distill.gpt.config.CompletionConfig",
-    "hierarchy.transfer_config.TransferConfig",
-    "foundation.sb3.PpoSettings",
+    "hierarchy.transfer.config.TransferConfig",
+    "foundation.ppo.PpoConfig",
     "mocap_hierarchy.quickstart.config.QuickstartConfig",
     "mocap_hierarchy.download.catalogue.HubSettings",
 )
@@ -118,6 +119,8 @@ def attribute_docs(cls: type) -> dict[str, str]:
 
 
 def _default(field: dataclasses.Field) -> str:
+    from foundation.schedule import Schedule
+
     if field.default is not dataclasses.MISSING:
         value = field.default
     elif field.default_factory is not dataclasses.MISSING:
@@ -126,7 +129,42 @@ def _default(field: dataclasses.Field) -> str:
         return "required"
     if callable(value) and not isinstance(value, type):
         return f"`{getattr(value, '__name__', repr(value))}`"
+    if isinstance(value, Schedule):
+        return f"`{value}`"
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return _block_default(value)
     return f"`{value!r}`"
+
+
+def _block_default(block: Any) -> str:
+    """A nested block's default: its class's defaults, or those with the settings that differ listed."""
+    from foundation.config_files import config_to_dict
+
+    cls = type(block)
+    changed = {k: v for k, v in config_to_dict(block).items() if v != config_to_dict(cls()).get(k)}
+    if not changed:
+        return f"the [`{cls.__name__}`](#{cls.__name__.lower()}) defaults"
+    listed = ", ".join(f"`{k}={v}`" for k, v in changed.items())
+    return f"[`{cls.__name__}`](#{cls.__name__.lower()}) with {listed}"
+
+
+def profiles_section() -> list[str]:
+    """The shipped expert profiles, each as its complete TOML file."""
+    from distill.experts.config import PROFILES
+
+    lines = [
+        "## Expert profiles",
+        "",
+        "`--profile NAME` starts `expert train` and `expert train-many` from one of these complete",
+        "`ExpertConfig` files (`distill/experts/profiles/NAME.toml`); flags given beside it change any",
+        "setting, `--print-config` prints the result, and `--config FILE` reads a copy you edited. The",
+        "batched engine (`--engine warp`) takes every setting the two engines share.",
+        "",
+    ]
+    for name in PROFILES:
+        text = resources.files("distill.experts").joinpath("profiles", f"{name}.toml").read_text()
+        lines += [f"### `{name}`", "", "```toml", text.rstrip(), "```", ""]
+    return lines
 
 
 def markdown_of_rst(text: str) -> str:
@@ -152,6 +190,13 @@ def configs_page() -> str:
         "them and Python code passes them as arguments. Defaults are the paper's (MoCapAct) where the paper",
         "gives a value. This page is generated from the classes when the site is built.",
         "",
+        "A setting of type `Schedule` changes during training: `VALUE` for one value, `VALUE@STEP,VALUE@STEP,...`",
+        "(the first at step 0; steps take `k` and `M`) to hold each value from its step on, or the same prefixed",
+        "with `linear:` to move in straight lines between the points: `--learning-rate 3e-4@0,1e-4@600k`,",
+        "`--action-std linear:0.3@0,0.2@2M`. A nested block (`ppo`) has its settings' flags under their own",
+        "names (`--epochs 5`, not `--ppo-epochs`); in Python, `foundation.config_files.with_settings(config,",
+        '{"learning_rate": "3e-4"})` changes any setting by name.',
+        "",
     ]
     undocumented = []
     for dotted in CONFIG_CLASSES:
@@ -170,6 +215,7 @@ def configs_page() -> str:
                 f"{_cell(meanings.get(field.name, ''))} |"
             )
         lines.append("")
+    lines += profiles_section()
     if undocumented:
         raise ValueError(f"fields without a meaning in their class's Attributes section: {', '.join(undocumented)}")
     return "\n".join(lines)

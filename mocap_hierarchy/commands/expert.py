@@ -10,14 +10,11 @@ from pathlib import Path
 
 from distill.experts.config import (
     EVALUATIONS,
-    FAST_3M_SCHEDULES,
-    FAST_3M_WIDE_CHANGES,
-    FAST_PROFILE_CHANGES,
+    PROFILES,
     BatchedExpertConfig,
     EvaluationConfig,
     ExpertConfig,
-    expert_profiles,
-    with_changes,
+    expert_profile,
 )
 from foundation.config_cli import (
     LazySubParsers,
@@ -26,6 +23,7 @@ from foundation.config_cli import (
     dataclass_from_args,
     given_fields,
 )
+from foundation.config_files import config_to_toml, read_config_file, setting_names, with_settings
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
@@ -39,7 +37,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     train.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
     train.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")
     _add_profile(train)
-    add_dataclass_arguments(train, ExpertConfig)
+    add_dataclass_arguments(train, ExpertConfig, base=ExpertConfig())
     train.set_defaults(handler=_train)
 
     many = commands.add_parser("train-many", help="train many experts as independent jobs (process pool or Ray)")
@@ -56,9 +54,10 @@ def add_commands(subparsers: LazySubParsers) -> None:
         choices=("process", "warp"),
         default="process",
         help="process: one CPU job per expert (SB3 PPO); warp: all experts in one batched GPU env (rsl_rl PPO, "
-        "needs the gpu extra; BatchedExpertConfig flags, and its defaults for the shared flags)",
+        "needs the gpu extra; without --profile or --config it starts from BatchedExpertConfig's defaults, with "
+        "them from every setting the engines share)",
     )
-    add_dataclass_arguments(many, ExpertConfig, exclude=("n_envs", "subprocess_envs", "torch_threads"))
+    add_dataclass_arguments(many, ExpertConfig, exclude=_CPU_JOB_SETTINGS)
     add_dataclass_arguments(many, BatchedExpertConfig, exclude=_SHARED_WITH_CPU)
     many.set_defaults(handler=_train_many)
 
@@ -87,37 +86,56 @@ _SHARED_WITH_CPU = tuple(
     for f in dataclasses.fields(BatchedExpertConfig)
     if f.name in {g.name for g in dataclasses.fields(ExpertConfig)}
 )
-"""Flags ``--engine warp`` reads from the CPU trainer's flag group (same names, same meaning)."""
+"""Settings ``--engine warp`` reads from the CPU trainer's flag group (same names, same meaning), the PPO block too."""
 
-
-def _listed(changes: dict) -> str:
-    """A profile's changes as ``field=value`` pairs, a tuple's values separated by spaces as its flag takes them."""
-    return ", ".join(f"{k}={' '.join(map(str, v)) if isinstance(v, tuple) else v}" for k, v in changes.items())
+_CPU_JOB_SETTINGS = ("n_envs", "subprocess_envs", "torch_threads")
+"""Settings ``train-many`` decides itself: one process, one thread, in-process environments per job."""
 
 
 def _add_profile(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--profile",
-        choices=tuple(expert_profiles()),
-        default="paper",
-        help="starting settings, changed further by the flags below: paper (the defaults shown, MoCapAct's), "
-        f"fast ({_listed(FAST_PROFILE_CHANGES)}), fast-3m (fast with {_listed(FAST_3M_SCHEDULES)}; one "
-        f"--learning-rates value drops its step-size schedule), or fast-3m-wide (fast-3m with "
-        f"{_listed(FAST_3M_WIDE_CHANGES)})",
+        choices=PROFILES,
+        default=None,
+        help="a shipped complete config to start from, changed further by the flags below: paper (the defaults "
+        "shown, MoCapAct's), fast (measured fastest on a small CPU machine), fast-3m (fast with step-size and noise "
+        "schedules for 3M steps) or fast-3m-wide (2x512 networks); --print-config shows one",
+    )
+    parser.add_argument("--config", type=Path, default=None, help="a config file (TOML or JSON) to start from instead")
+    parser.add_argument(
+        "--print-config", action="store_true", help="print the complete config these flags give (TOML) and exit"
     )
 
 
-def _expert_config(args: argparse.Namespace, **fixed) -> ExpertConfig:
-    config = with_changes(expert_profiles()[args.profile], {**given_fields(ExpertConfig, args), **fixed})
+def _base_config(args: argparse.Namespace) -> ExpertConfig | None:
+    """The config ``--profile`` or ``--config`` names (None: neither was given)."""
+    if args.profile and args.config:
+        raise ValueError("give --profile or --config, not both")
+    if args.config:
+        return read_config_file(ExpertConfig, args.config)
+    return expert_profile(args.profile) if args.profile else None
+
+
+def _expert_config(args: argparse.Namespace) -> ExpertConfig:
+    changes = given_fields(ExpertConfig, args)
     if args.steps is not None:
-        config = dataclasses.replace(config, total_steps=args.steps)
-    return config
+        changes["total_steps"] = args.steps
+    return with_settings(_base_config(args) or ExpertConfig(), changes)
+
+
+def _print_config(config: ExpertConfig | BatchedExpertConfig, args: argparse.Namespace) -> None:
+    origin = f"profile {args.profile}" if args.profile else str(args.config) if args.config else "the defaults"
+    print(config_to_toml(config, f"{type(config).__name__} from {origin} and the flags given"), end="")
 
 
 def _train(args: argparse.Namespace) -> None:
     from distill.experts.training import train_expert
 
-    result = train_expert(args.snippet, args.out, _expert_config(args), clips=args.clips)
+    config = _expert_config(args)
+    if args.print_config:
+        _print_config(config, args)
+        return
+    result = train_expert(args.snippet, args.out, config, clips=args.clips)
     best = result.best or {}
     print(
         f"{result.snippet}: {result.stop_reason} after {result.steps} steps; best normalised reward "
@@ -136,11 +154,15 @@ def _train_many(args: argparse.Namespace) -> None:
     if args.engine == "warp":
         _train_many_batched(args, snippets)
         return
-    batched_only = [f.name for f in dataclasses.fields(BatchedExpertConfig) if f.name not in _SHARED_WITH_CPU]
+    batched_only = [n for n in setting_names(BatchedExpertConfig) if n not in setting_names(ExpertConfig)]
     given = [f"--{name.replace('_', '-')}" for name in batched_only if getattr(args, name, None) is not None]
     if given:
         raise ValueError(f"{', '.join(given)} only apply to --engine warp")
-    jobs = expert_jobs(snippets, args.out, _expert_config(args), args.clips)
+    config = _expert_config(args)
+    if args.print_config:
+        _print_config(config, args)
+        return
+    jobs = expert_jobs(snippets, args.out, config, args.clips)
     reports = run_jobs(jobs, workers=args.workers, max_attempts=args.max_attempts, ray_address=args.ray)
     print(summarise(reports))
     if any(r.status == "failed" for r in reports):
@@ -149,19 +171,23 @@ def _train_many(args: argparse.Namespace) -> None:
 
 def _train_many_batched(args: argparse.Namespace, snippets: list[str]) -> None:
     """``train-many --engine warp``: every expert in one batched env (see :mod:`distill.experts.batched_training`)."""
-    from distill.experts.batched_training import train_experts_batched
-
-    cpu_only = [f.name for f in dataclasses.fields(ExpertConfig) if f.name not in _SHARED_WITH_CPU]
+    shared = setting_names(BatchedExpertConfig)
+    cpu_only = [n for n in setting_names(ExpertConfig) if n not in shared]
     given = [f"--{name.replace('_', '-')}" for name in cpu_only if getattr(args, name, None) is not None]
     if args.ray is not None or args.workers:
         given.append("--ray/--workers")
-    if args.profile != "paper":
-        given.append(f"--profile {args.profile}")
     if given:
         raise ValueError(f"{', '.join(given)} do not apply to --engine warp (see BatchedExpertConfig in --help)")
-    config = dataclass_from_args(BatchedExpertConfig, args)
+    base = _base_config(args)
+    config = BatchedExpertConfig.from_expert_config(base) if base is not None else BatchedExpertConfig()
+    config = dataclass_from_args(BatchedExpertConfig, args, base=config)
     if args.steps is not None:
         config = dataclasses.replace(config, total_steps=args.steps)
+    if args.print_config:
+        _print_config(config, args)
+        return
+    from distill.experts.batched_training import train_experts_batched
+
     finished = train_experts_batched(snippets, args.out, config, clips=args.clips)
     print(f"{'snippet':<28}{'best norm. reward':>18}{'best norm. length':>18}{'CPU eval length':>16}")
     for snippet, summary in finished.items():

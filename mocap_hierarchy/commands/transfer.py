@@ -44,7 +44,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
 
 
 def _build_train(parser: argparse.ArgumentParser) -> None:
-    from hierarchy.transfer_config import TransferConfig
+    from hierarchy.transfer.config import TransferConfig
 
     parser.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
     parser.add_argument(

@@ -58,14 +58,17 @@ def experts_stage(folder: Path, library: str, config: QuickstartConfig) -> list[
     from distill.experts.files import expert_dir_for
     from distill.experts.loading import load_expert
     from distill.experts.training import expert_jobs
+    from foundation.ppo import PpoConfig
+    from foundation.schedule import Schedule
 
     steps = max(2048, int(config.expert_steps * config.scale) // 2048 * 2048)
     expert_config = ExpertConfig(
         total_steps=steps,
-        steps_per_update=2048,
-        minibatch_size=256,
+        steps_per_update=Schedule.constant(2048),
+        # The paper's PPO with smaller minibatches, its three step sizes over thirds of this budget.
+        ppo=PpoConfig(learning_rate=Schedule.equal_parts((1e-5, 6e-6, 3e-6), steps), minibatch_size=256),
         eval_every=max(2048, steps // 4),
-        eval_episodes=20,
+        eval_episodes=Schedule.constant(20),
         checkpoint_every=max(2048, steps // 4),
         residual_actions=config.residual_actions,
         seed=config.seed,
@@ -164,22 +167,24 @@ def transfer_stage(out: Path, decoder: str | None, prior: str | None, config: Qu
 
     ``decoder`` None trains on joint targets; with ``prior`` the actions are residuals on the decoder's prior.
     """
+    from foundation.config_files import with_settings
     from hierarchy.transfer import TransferConfig, track_speed, train_transfer
     from tasks.downstream.speed_tracking import summarise
 
     steps = max(2048, round(config.transfer_steps * config.scale) // 2048 * 2048)
-    transfer = TransferConfig(
-        total_steps=steps,
-        n_envs=4,
-        steps_per_update=2048,
-        minibatch_size=256,
-        hidden_layers=(256, 256),
-        learning_rate=3e-4,
-        initial_std=1.0 if decoder else None,
-        subprocess_envs=False,
-        checkpoint_every=2048,
-        seed=config.seed,
-        device="cpu",
+    transfer = with_settings(
+        TransferConfig(
+            total_steps=steps,
+            n_envs=4,
+            steps_per_update=2048,
+            initial_std=1.0 if decoder else None,
+            subprocess_envs=False,
+            checkpoint_every=2048,
+            seed=config.seed,
+            device="cpu",
+        ),
+        # The PPO block's settings scaled down; the others stay the paper's Table 3.
+        {"minibatch_size": 256, "hidden_layers": (256, 256), "learning_rate": 3e-4},
     )
     label = MODE_LABELS["decoder" if decoder else "joints"] + (" around its latent prior" if prior else "")
     print(f"\nvelocity control {label}: {steps} steps")

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from hierarchy.transfer_config import RESUME_FREE_FIELDS, SB3_RETURN_KEY, TASK_RETURN_KEY
+from hierarchy.transfer.config import RESUME_FREE_FIELDS, SB3_RETURN_KEY, TASK_RETURN_KEY, nested_config_dict
 
 SKIPPED_FOLDERS = {"checkpoint", "tensorboard", "report", "__pycache__"}
 """Folders never searched: training internals and the report's own output."""
@@ -106,7 +106,9 @@ class TransferRun:
         returns: Mean training-episode return at each update: the task's own (``rollout/task_return_mean``)
             where the run logged it, else SB3's ``rollout/ep_rew_mean`` (equal unless the task adds a training term).
         task_overrides: The task's settings that differ from its defaults (``transfer.json``).
-        config: The run's PPO settings (``transfer.json``).
+        config: The run's settings by name, the PPO block's among them (``transfer.json``'s config; runs
+            recorded before the block, in the flat form, read the same:
+            :func:`hierarchy.transfer.config.nested_config_dict`).
         variant: The decoder and PPO settings in which this run differs from others of its task,
             action space and task settings (set by :func:`find_run_contents`); empty when none.
         decoder: The decoder's shipped name or file stem (``+prior`` when the policy acted
@@ -288,9 +290,7 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
                 returns.append(float(value))
     if not steps:
         return None
-    config = info.get("config", {})
-    if not isinstance(config, dict):
-        config = {}
+    config = _settings_by_name(info.get("config"))
     decoder = info.get("decoder") or {}
     if decoder:
         per_latent = int(config.get("steps_per_latent", 1) or 1)
@@ -313,3 +313,12 @@ def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:
         config,
         decoder=decoder_name,
     )
+
+
+def _settings_by_name(recorded: Any) -> dict[str, Any]:
+    """A ``transfer.json`` config (nested, or the flat form of earlier runs) as one dict of settings by name."""
+    if not isinstance(recorded, dict):
+        return {}
+    nested = nested_config_dict(recorded)
+    ppo = nested.pop("ppo")
+    return {**nested, **(ppo if isinstance(ppo, dict) else {})}

@@ -25,7 +25,7 @@ Episode semantics (dm_control's):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import ClassVar
 
 import gymnasium as gym
@@ -335,15 +335,6 @@ class ClipTrackingEnv(gym.Env):
         """``(terminated, truncated, extra info)`` after a step: fail above the error threshold, end with the clip."""
         terminated = error > self.config.termination_threshold or diverged
         return terminated, not terminated and self._time_step == self._reference.last_step, {}
-
-    def set_termination_threshold(self, threshold: float) -> None:
-        """Changes the error that ends an episode (and scales the reward's termination term), from the next step on.
-
-        For curricula that start loose and tighten (``ExpertConfig.termination_start``).
-        """
-        if threshold <= 0:
-            raise ValueError("termination_threshold must be positive")
-        self.config = replace(self.config, termination_threshold=float(threshold))
 
     def absolute_action(self, action: np.ndarray) -> np.ndarray:
         """The joint targets an action stands for at this step.

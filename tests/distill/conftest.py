@@ -7,15 +7,21 @@ from pathlib import Path
 import pytest
 
 from distill.experts.config import ExpertConfig
+from foundation.ppo import PpoConfig
+from foundation.schedule import Schedule
 
 TINY = ExpertConfig(
     total_steps=1024,
-    steps_per_update=512,
-    minibatch_size=128,
-    epochs=2,
-    hidden_layers=(32, 32),
+    steps_per_update=Schedule.constant(512),
+    # The paper's PPO at a small size, its three step sizes over thirds of this budget.
+    ppo=PpoConfig(
+        learning_rate=Schedule.equal_parts((1e-5, 6e-6, 3e-6), 1024),
+        minibatch_size=128,
+        epochs=2,
+        hidden_layers=(32, 32),
+    ),
     eval_every=512,
-    eval_episodes=3,
+    eval_episodes=Schedule.constant(3),
     checkpoint_every=512,
     n_envs=2,
     subprocess_envs=False,

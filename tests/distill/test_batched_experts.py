@@ -11,29 +11,34 @@ import pytest
 pytest.importorskip("mujoco_warp", reason="the gpu extra is not installed")
 import torch
 
-from distill.experts import batched_training
-from distill.experts.batched_training import RunningMoments, train_experts_batched
-from distill.experts.config import BatchedExpertConfig
+from distill.experts import batched_learner, batched_training
+from distill.experts.batched_learner import RunningMoments
+from distill.experts.batched_training import train_experts_batched
+from distill.experts.config import PROFILES, BatchedExpertConfig, expert_profile
 from distill.experts.evaluation import training_task
 from distill.experts.files import ExpertDir, expert_dir_for
 from distill.experts.policy import ExpertPolicy
 from distill.experts.sb3_import import convert_sb3_expert
+from foundation.config_files import with_settings
 from foundation.interrupts import StopFlag, TrainingStopped
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 
 SNIPPETS = ["SYN_wave-0-60", "SYN_walk_slow-0-60"]
-TINY = BatchedExpertConfig(
-    total_steps=256,
-    worlds_per_snippet=8,
-    steps_per_env=16,
-    minibatches=2,
-    epochs=2,
-    hidden_layers=(32, 32),
-    eval_every=64,
-    eval_episodes=4,
-    checkpoint_every=128,
-    final_eval_episodes=3,
-    device="cpu",
+TINY = with_settings(
+    BatchedExpertConfig(),
+    {
+        "total_steps": 256,
+        "worlds_per_snippet": 8,
+        "steps_per_env": 16,
+        "minibatch_size": 64,  # two per update
+        "epochs": 2,
+        "hidden_layers": (32, 32),
+        "eval_every": 64,
+        "eval_episodes": 4,
+        "checkpoint_every": 128,
+        "final_eval_episodes": 3,
+        "device": "cpu",
+    },
 )
 
 
@@ -81,17 +86,17 @@ def test_the_exported_policy_computes_what_rsl_rl_computes(clip_library):
     from tensordict import TensorDict
 
     size = 300
-    algorithm = batched_training._build_algorithm(TINY, size, torch.device("cpu"))
+    algorithm = batched_learner.build_algorithm(TINY, size, torch.device("cpu"))
     moments = RunningMoments(size, torch.device("cpu"))
     generator = torch.Generator().manual_seed(0)
     raw = torch.randn(64, size, generator=generator, dtype=torch.float64) * 3 + 1
     moments.update(raw)
-    learner = batched_training._Learner(
+    learner = batched_learner.Learner(
         "SYN_wave-0-60", ExpertDir(clip_library.parent / "x"), slice(0, 8), algorithm, moments
     )
     keys = [f"walker/k{i}" for i in range(3)]
     sizes = dict.fromkeys(keys, 100)
-    policy = batched_training.export_policy(learner, keys, sizes, TINY)
+    policy = batched_learner.export_policy(learner, keys, sizes, TINY)
     observations = {k: raw[:, i * 100 : (i + 1) * 100].numpy() for i, k in enumerate(keys)}
     batch = TensorDict({"policy": moments.normalise(raw)}, batch_size=[64])
     with torch.no_grad():
@@ -126,8 +131,8 @@ def test_a_stop_saves_checkpoints_and_the_same_call_resumes(tmp_path, clip_libra
     saved = ExpertPolicy.load(expert).state_dict()
 
     monkeypatch.undo()
-    changed = BatchedExpertConfig(**{**TINY.__dict__, "gamma": 0.9})
-    with pytest.raises(ValueError, match=r"gamma: saved 0\.95, requested 0\.9"):
+    changed = with_settings(TINY, {"gamma": 0.9})
+    with pytest.raises(ValueError, match=r"ppo\.gamma: saved 0\.95, requested 0\.9"):
         train_experts_batched(SNIPPETS[:1], tmp_path, changed, clips=str(clip_library), progress=False)
     finished = train_experts_batched(SNIPPETS[:1], tmp_path, TINY, clips=str(clip_library), progress=False)
     assert finished[SNIPPETS[0]]["steps"] == 256
@@ -184,11 +189,11 @@ def test_the_command_line_trains_with_the_warp_engine_and_refuses_flags_of_the_o
     listing = tmp_path / "snippets.txt"
     listing.write_text("SYN_wave-0-60\n")
     common = ["expert", "train-many", "--snippets", str(listing), "--out", str(tmp_path / "experts")]
-    assert main([*common, "--engine", "warp", "--learning-rates", "1e-4"]) == 2
-    assert "--learning-rates do not apply to --engine warp" in capsys.readouterr().err
+    assert main([*common, "--engine", "warp", "--no-eval-at-start"]) == 2
+    assert "--eval-at-start do not apply to --engine warp" in capsys.readouterr().err
     assert main([*common, "--worlds-per-snippet", "8"]) == 2
     assert "--worlds-per-snippet only apply to --engine warp" in capsys.readouterr().err
-    tiny = ["--steps", "128", "--worlds-per-snippet", "8", "--steps-per-env", "16", "--minibatches", "2"]
+    tiny = ["--steps", "128", "--worlds-per-snippet", "8", "--steps-per-env", "16", "--minibatch-size", "64"]
     tiny += [
         "--hidden-layers",
         "16",
@@ -210,3 +215,29 @@ def test_the_command_line_trains_with_the_warp_engine_and_refuses_flags_of_the_o
     if not warp.get_cuda_devices():
         assert main([*rollout, "--device", "cuda", "--clips", str(clip_library)]) == 2
         assert "use --device cpu" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", PROFILES)
+def test_every_profile_trains_one_update_on_the_batched_engine(name, tmp_path, clip_library):
+    profile = expert_profile(name)
+    config = BatchedExpertConfig.from_expert_config(profile)
+    assert config.ppo == profile.ppo and config.action_std == profile.action_std  # what the engines share
+    assert config.eval_episodes == profile.eval_episodes and config.residual_actions == profile.residual_actions
+    short = with_settings(
+        config,
+        {
+            "total_steps": 128,
+            "worlds_per_snippet": 8,
+            "steps_per_env": 16,
+            "minibatch_size": 64,
+            "eval_every": 128,
+            "eval_episodes": 2,
+            "final_eval_episodes": 0,
+            "device": "cpu",
+        },
+    )
+    finished = train_experts_batched(SNIPPETS[:1], tmp_path, short, clips=str(clip_library), progress=False)
+    assert finished[SNIPPETS[0]]["steps"] == 128
+    policy = ExpertPolicy.load(expert_dir_for(tmp_path, SNIPPETS[0]))
+    assert policy.spec.hidden_layers == profile.ppo.hidden_layers
+    assert policy.spec.residual_actions == profile.residual_actions

@@ -73,36 +73,36 @@ def test_expert_command_errors(tmp_path, capsys):
         main(["expert", "train", "--snippet", "SYN_stand", "--out", str(tmp_path), "--epochs", "many"])
 
 
-def test_fast_profile_sets_its_values_and_flags_still_win(clip_library, tmp_path, capsys):
-    from distill.experts.config import FAST_PROFILE_CHANGES
+def test_a_profile_gives_every_setting_flags_win_and_print_config_round_trips(clip_library, tmp_path, capsys):
+    from distill.experts.config import ExpertConfig, expert_profile
+    from distill.experts.config_versions import read_expert_settings
+    from foundation.config_files import read_config_file
 
     snippets = tmp_path / "snippets.txt"
     snippets.write_text("SYN_wave-0-196\n")
     out = tmp_path / "experts"
     args = ["expert", "train-many", "--snippets", str(snippets), "--out", str(out), "--steps", "512"]
     assert main([*args, "--workers", "1", "--profile", "fast", *TINY_FLAGS]) == 0
-    saved = json.loads((out / "SYN_wave-0-196" / "config.json").read_text())
-    given = {
-        "steps_per_update",
-        "minibatch_size",
-        "epochs",
-        "hidden_layers",
-        "eval_every",
-        "eval_episodes",
-        "checkpoint_every",
-    }
-    for name, value in FAST_PROFILE_CHANGES.items():
-        expected = list(value) if isinstance(value, tuple) else value
-        if name not in given:
-            assert saved[name] == expected, name
-    assert saved["hidden_layers"] == [16, 16] and saved["epochs"] == 1  # flags beside the profile win
-    assert saved["n_envs"] == FAST_PROFILE_CHANGES["n_envs"]  # train-many keeps the profile's in-process envs
-    scheduled = tmp_path / "fast-3m"  # one step size beside fast-3m: constant, its noise schedule kept
-    args_3m = [*args[:5], str(scheduled), "--steps", "512", "--workers", "1", "--profile", "fast-3m"]
-    assert main([*args_3m, *TINY_FLAGS, "--learning-rates", "1e-4", "--final-eval-episodes", "2"]) == 0
-    saved = json.loads((scheduled / "SYN_wave-0-196" / "config.json").read_text())
-    assert saved["learning_rates"] == [1e-4] and saved["learning_rate_steps"] == []
-    assert saved["action_std_steps"] == [2_000_000] and saved["later_action_stds"] == [0.2]
+    saved = read_expert_settings(json.loads((out / "SYN_wave-0-196" / "config.json").read_text()))
+    fast = expert_profile("fast")
+    assert saved.ppo.hidden_layers == (16, 16) and saved.ppo.epochs == 1  # flags beside the profile win
+    assert saved.ppo.learning_rate == fast.ppo.learning_rate and saved.action_std == fast.action_std  # the rest: fast's
+    assert saved.residual_actions and saved.n_envs == fast.n_envs  # train-many keeps the profile's in-process envs
+
     capsys.readouterr()
-    assert main([*args, "--engine", "warp", "--profile", "fast"]) == 2
-    assert "--profile fast do not apply to --engine warp" in capsys.readouterr().err
+    printed = tmp_path / "mine.toml"
+    train = ["expert", "train", "--snippet", "SYN_wave-0-196", "--out", str(tmp_path / "one"), "--profile", "fast-3m"]
+    assert main([*train, "--learning-rate", "1e-4@0,5e-5@256", "--print-config"]) == 0
+    printed.write_text(capsys.readouterr().out)
+    mine = read_config_file(ExpertConfig, printed)
+    assert str(mine.ppo.learning_rate) == "1e-4@0,5e-5@256" and mine.action_std == expert_profile("fast-3m").action_std
+    assert not (tmp_path / "one").exists()  # printing trains nothing
+    assert main(["expert", "train", "--snippet", "SYN_wave-0-196", "--out", str(tmp_path / "one"),
+                 "--config", str(printed), "--print-config"]) == 0  # fmt: skip
+    assert read_config_file(ExpertConfig, printed) == mine and capsys.readouterr().out == printed.read_text().replace(
+        "profile fast-3m", str(printed)
+    )
+    assert main([*train, "--config", str(printed)]) == 2
+    assert "--profile or --config, not both" in capsys.readouterr().err
+    assert main([*args, "--engine", "warp", "--learn-action-std"]) == 2  # a CPU-only setting on the batched engine
+    assert "do not apply to --engine warp" in capsys.readouterr().err

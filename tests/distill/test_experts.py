@@ -2,6 +2,8 @@ import csv
 import dataclasses
 import json
 import pickle
+import tomllib
+import types
 from pathlib import Path
 
 import numpy as np
@@ -9,25 +11,23 @@ import pytest
 import torch
 from stable_baselines3 import PPO
 
-from distill.experts.config import (
-    ExpertConfig,
-    KlAdaptiveLearningRate,
-    PiecewiseLearningRate,
-    expert_profiles,
-    with_changes,
-)
+from distill.experts.callbacks import RunState, keep_training
+from distill.experts.config import PROFILES, ExpertConfig, expert_profile
+from distill.experts.config_versions import RemovedSettingError, read_expert_settings
 from distill.experts.evaluation import EvaluationResult, training_task
 from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
 from distill.experts.loading import load_expert
 from distill.experts.training import (
     ConfigMismatchError,
+    ExpertRun,
     _resume_or_build,
-    _Trainer,
-    _training_fields,
-    keep_training,
     train_expert,
     training_envs,
 )
+from foundation.config_files import config_from_dict, config_to_dict, config_to_toml, with_settings
+from foundation.ppo import PpoConfig
+from foundation.sb3 import StepSize
+from foundation.schedule import Schedule
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 
 
@@ -90,26 +90,26 @@ def test_rerun_skips_a_finished_expert(trained_expert, snippet, tiny):
 
 def test_interrupted_training_resumes_from_its_checkpoint(clip_library, tmp_path, monkeypatch, snippet, tiny):
     config = dataclasses.replace(tiny, total_steps=1536)
-    original = _Trainer.evaluate
+    original = ExpertRun.evaluate
     calls = {"n": 0}
 
-    def crash_on_third_evaluation(self, model, steps, state):
+    def crash_on_third_evaluation(self, model, steps):
         calls["n"] += 1
         if calls["n"] == 3:  # step 0, 512, then 1024
             raise KeyboardInterrupt("simulated kill")
-        return original(self, model, steps, state)
+        return original(self, model, steps)
 
-    monkeypatch.setattr(_Trainer, "evaluate", crash_on_third_evaluation)
+    monkeypatch.setattr(ExpertRun, "evaluate", crash_on_third_evaluation)
     with pytest.raises(KeyboardInterrupt):
         train_expert(snippet, tmp_path, config, progress=False)
     expert = ExpertDir(tmp_path / snippet)
     state = json.loads((expert.checkpoint_dir / "state.json").read_text())
     assert state["steps"] == 512 and not expert.done.exists()
 
-    with pytest.raises(ConfigMismatchError, match="learning_rates"):
-        train_expert(snippet, tmp_path, dataclasses.replace(config, learning_rates=(1e-3,)), progress=False)
+    with pytest.raises(ConfigMismatchError, match=r"ppo\.learning_rate"):
+        train_expert(snippet, tmp_path, with_settings(config, {"learning_rate": "1e-3"}), progress=False)
 
-    monkeypatch.setattr(_Trainer, "evaluate", original)
+    monkeypatch.setattr(ExpertRun, "evaluate", original)
     result = train_expert(snippet, tmp_path, config, progress=False)
     assert result.stop_reason == "budget" and result.steps == 1536
     steps = [e["steps"] for e in json.loads(expert.evaluations.read_text())]
@@ -121,17 +121,17 @@ def test_interrupted_training_resumes_from_its_checkpoint(clip_library, tmp_path
 
 def _interrupted_run(out: Path, snippet: str, config: ExpertConfig, monkeypatch) -> ExpertDir:
     """A run stopped by a crash at its evaluation of step 1024, leaving its checkpoint of step 512."""
-    original = _Trainer.evaluate
+    original = ExpertRun.evaluate
 
-    def crash_at_1024(self, model, steps, state):
+    def crash_at_1024(self, model, steps):
         if steps >= 1024:
             raise KeyboardInterrupt("simulated kill")
-        return original(self, model, steps, state)
+        return original(self, model, steps)
 
-    monkeypatch.setattr(_Trainer, "evaluate", crash_at_1024)
+    monkeypatch.setattr(ExpertRun, "evaluate", crash_at_1024)
     with pytest.raises(KeyboardInterrupt):
         train_expert(snippet, out, config, progress=False)
-    monkeypatch.setattr(_Trainer, "evaluate", original)
+    monkeypatch.setattr(ExpertRun, "evaluate", original)
     return ExpertDir(out / snippet)
 
 
@@ -142,12 +142,11 @@ def _logged(expert: ExpertDir, column: str) -> dict[int, float]:
     return {int(r["time/total_timesteps"]): float(r[column]) for r in rows if r[column]}
 
 
-def test_a_resumed_piecewise_schedule_switches_at_the_same_step_as_an_uninterrupted_run(
+def test_a_resumed_step_size_schedule_switches_at_the_same_step_as_an_uninterrupted_run(
     clip_library, tmp_path, monkeypatch, snippet, tiny
 ):
-    # The step size drops at step 1536 of 2048. A resume must not restart the schedule
-    # from the resumed run's remaining steps.
-    config = dataclasses.replace(tiny, total_steps=2048, learning_rates=(1e-3, 1e-4), learning_rate_steps=(1536,))
+    # The step size drops at step 1536 of 2048; a resume follows the schedule by the step it is at.
+    config = with_settings(tiny, {"total_steps": 2048, "learning_rate": "1e-3@0,1e-4@1536"})
     train_expert(snippet, tmp_path / "straight", config, progress=False)
     straight = _logged(ExpertDir(tmp_path / "straight" / snippet), "train/learning_rate")
     assert straight == {1024: 1e-3, 1536: 1e-3, 2048: 1e-4}  # each row logs the update before it
@@ -163,9 +162,7 @@ def test_a_resumed_piecewise_schedule_switches_at_the_same_step_as_an_uninterrup
 def test_a_noise_schedule_drops_the_training_noise_at_its_step_also_across_a_resume(
     clip_library, tmp_path, monkeypatch, snippet, tiny
 ):
-    config = dataclasses.replace(
-        tiny, total_steps=2560, action_std=0.3, action_std_steps=(1536,), later_action_stds=(0.2,)
-    )
+    config = with_settings(tiny, {"total_steps": 2560, "action_std": "0.3@0,0.2@1536"})
     train_expert(snippet, tmp_path / "straight", config, progress=False)
     straight = _logged(ExpertDir(tmp_path / "straight" / snippet), "train/std")  # the policy's noise
     # Each row logs the update before the rollout it ends: the one at 2560 trained on steps 1536-2048.
@@ -181,10 +178,11 @@ def test_a_noise_schedule_drops_the_training_noise_at_its_step_also_across_a_res
 def test_an_update_size_schedule_grows_the_updates_at_its_step_also_across_a_resume(
     clip_library, tmp_path, monkeypatch, snippet, tiny
 ):
-    # 512 steps per update, 1024 from step 1024 on: updates end at 512, 1024, 2048, 3072. One step
-    # size, so that the budgets of the two runs compared below do not move the paper's thirds.
-    tiny = dataclasses.replace(tiny, learning_rates=(1e-4,))
-    config = dataclasses.replace(tiny, total_steps=3072, steps_per_update_steps=(1024,), later_steps_per_update=(1024,))
+    # 512 steps per update, 1024 from step 1024 on: updates end at 512, 1024, 2048, 3072. This reads
+    # SB3's rollout length and buffer between learn() calls (foundation.sb3.resize_rollouts): it
+    # fails if SB3 stops reading them there.
+    tiny = with_settings(tiny, {"learning_rate": "1e-4"})
+    config = with_settings(tiny, {"total_steps": 3072, "steps_per_update": "512@0,1024@1024"})
     train_expert(snippet, tmp_path / "straight", config, progress=False)
     straight = ExpertDir(tmp_path / "straight" / snippet)
     sizes = _logged(straight, "train/steps_per_update")  # logged by the rollout that ends at the row's step
@@ -201,266 +199,168 @@ def test_an_update_size_schedule_grows_the_updates_at_its_step_also_across_a_res
     resumed = _logged(killed, "train/steps_per_update")
     assert resumed.keys() >= {2048, 3072} and resumed == {step: sizes[step] for step in resumed}
     saved = json.loads(straight.done.read_text())["config"]
-    assert saved["later_steps_per_update"] == [1024]  # the schedule is part of the run's settings
+    assert saved["steps_per_update"] == "512@0,1024@1024" and saved["version"] == 2  # part of the settings
 
 
-def test_update_size_schedule_values_and_checks():
-    config = ExpertConfig(steps_per_update=4096, steps_per_update_steps=(2_000_000,), later_steps_per_update=(16384,))
-    config.validate()
-    assert [config.steps_per_update_at(s) for s in (0, 1_999_999, 2_000_000, 3_000_000)] == [4096, 4096, 16384, 16384]
-    with pytest.raises(ValueError, match="as many"):
-        ExpertConfig(steps_per_update_steps=(5,)).validate()
-    with pytest.raises(ValueError, match="increasing"):
-        ExpertConfig(steps_per_update_steps=(6, 5), later_steps_per_update=(8192, 8192)).validate()
+def test_schedules_are_checked_once_with_the_setting_named():
+    ExpertConfig(steps_per_update=Schedule.parse("4096@0,16384@2M"), n_envs=8).validate()
+    with pytest.raises(ValueError, match=r"steps_per_update .*not linear"):
+        ExpertConfig(steps_per_update=Schedule.parse("linear:4096@0,16384@2M")).validate()
     with pytest.raises(ValueError, match="minibatch_size"):
-        ExpertConfig(steps_per_update_steps=(5,), later_steps_per_update=(256,)).validate()
+        ExpertConfig(steps_per_update=Schedule.parse("8192@0,256@5")).validate()
     with pytest.raises(ValueError, match="multiple of the number of environments"):
-        ExpertConfig(n_envs=8, steps_per_update_steps=(5,), later_steps_per_update=(8196,)).validate()
+        ExpertConfig(n_envs=8, steps_per_update=Schedule.parse("8192@0,8196@5")).validate()
+    with pytest.raises(ValueError, match="eval_episodes"):
+        ExpertConfig(eval_episodes=Schedule.parse("100@0,0@5")).validate()
+    with pytest.raises(ValueError, match=r"action_std .* positive"):
+        ExpertConfig(action_std=Schedule.parse("0.3@0,0@5")).validate()
+    with pytest.raises(ValueError, match="learned noise"):
+        ExpertConfig(action_std=Schedule.parse("0.3@0,0.2@5"), learn_action_std=True).validate()
+    with pytest.raises(ValueError, match="adaptive rule"):
+        with_settings(ExpertConfig(), {"schedule": "adaptive"}).validate()  # the paper's three step sizes
 
 
-def test_noise_schedule_values_and_checks():
-    config = ExpertConfig(action_std=0.3, action_std_steps=(2_000_000, 2_500_000), later_action_stds=(0.2, 0.15))
-    config.validate()
-    assert [config.action_std_at(s) for s in (0, 1_999_999, 2_000_000, 2_499_999, 3_000_000)] == [
-        0.3,
-        0.3,
-        0.2,
-        0.2,
-        0.15,
-    ]
-    assert ExpertConfig(action_std=0.3).action_std_at(5_000_000) == 0.3
-    with pytest.raises(ValueError, match="as many"):
-        ExpertConfig(action_std_steps=(5,), later_action_stds=()).validate()
-    with pytest.raises(ValueError, match="increasing"):
-        ExpertConfig(action_std_steps=(6, 5), later_action_stds=(0.2, 0.1)).validate()
-    with pytest.raises(ValueError, match="positive"):
-        ExpertConfig(action_std_steps=(5,), later_action_stds=(0.0,)).validate()
-    with pytest.raises(ValueError, match="learn_action_std"):
-        ExpertConfig(action_std_steps=(5,), later_action_stds=(0.2,), learn_action_std=True).validate()
+def test_the_step_size_follows_the_model_step_or_the_adaptive_rule():
+    model = types.SimpleNamespace(num_timesteps=0)
+    fixed = StepSize(model, PpoConfig(learning_rate=Schedule.parse("3e-4@0,1e-4@600k")))
+    assert fixed(1.0) == 3e-4
+    model.num_timesteps = 600_000
+    assert fixed(0.99) == 1e-4  # by the step, whatever SB3's progress of one learn() call says
+    adaptive = StepSize(model, PpoConfig(learning_rate=Schedule.constant(1e-4), schedule="adaptive", desired_kl=0.01))
+    assert adaptive(1.0) == 1e-4
+    assert adaptive.adapt(0.03) == pytest.approx(1e-4 / 1.5)  # above twice the target: smaller
+    assert adaptive.adapt(0.015) == pytest.approx(1e-4 / 1.5)  # within [0.5, 2] x the target: unchanged
+    assert adaptive.adapt(0.001) == pytest.approx(1e-4) and adaptive(0.0) == pytest.approx(1e-4)
+    for _ in range(50):
+        adaptive.adapt(1.0)
+    assert adaptive.value == StepSize.LOW
+    resumed = StepSize(model, PpoConfig(learning_rate=Schedule.constant(3e-4), schedule="adaptive"), value=2e-5)
+    assert resumed(0.5) == 2e-5  # a checkpoint's step size
 
 
-def test_the_fast_3m_profile_is_fast_with_both_schedules_and_a_lone_change_replaces_a_schedule():
-    profiles = expert_profiles()
-    fast, fast_3m = profiles["fast"], profiles["fast-3m"]
-    fast_3m.validate()
-    assert (
-        dataclasses.replace(
-            fast_3m,
-            learning_rates=(3e-4,),
-            learning_rate_steps=(),
-            action_std_steps=(),
-            later_action_stds=(),
-            total_steps=fast.total_steps,
-        )
-        == fast
+@pytest.mark.parametrize("name", PROFILES)
+def test_every_profile_validates_reads_back_from_its_toml_and_trains_one_update(name, clip_library, tmp_path, snippet):
+    profile = expert_profile(name)
+    profile.validate()
+    if name == "paper":
+        assert profile == ExpertConfig()  # the defaults are the paper's, and so is its profile
+    text = config_to_toml(profile)
+    assert config_from_dict(ExpertConfig, tomllib.loads(text)) == profile
+    first_update = profile.steps_per_update_at(0)
+    short = with_settings(
+        profile,
+        {
+            "total_steps": first_update,
+            "eval_at_start": False,
+            "eval_episodes": "2",
+            "final_eval_episodes": 0,
+            "n_envs": 2 if name == "paper" else profile.n_envs,
+            "subprocess_envs": False,
+        },
     )
-    assert [fast_3m.action_std_at(s) for s in (0, 2_000_000)] == [0.3, 0.2]
-    assert fast_3m.total_steps == 3_000_000
-    constant = with_changes(fast_3m, {"learning_rates": (1e-4,)})  # a sweep's one step size: no schedule left
-    constant.validate()
-    assert constant.learning_rate_steps == () and constant.action_std_steps == (2_000_000,)
-    two = with_changes(fast_3m, {"learning_rates": (5e-4, 5e-5)})  # two values keep the base's switch step
-    assert two.learning_rate_steps == (600_000,)
-    learned = with_changes(fast_3m, {"learn_action_std": True})
-    learned.validate()
-    assert learned.action_std_steps == () and learned.later_action_stds == ()
-    assert with_changes(fast, {"action_std": 0.2}) == dataclasses.replace(fast, action_std=0.2)
+    result = train_expert(snippet, tmp_path, short, progress=False)
+    assert result.steps == first_update and result.best is not None and result.best["steps"] == first_update
+    saved = json.loads(ExpertDir(Path(result.directory)).config.read_text())
+    assert read_expert_settings(saved) == short
 
 
-def test_the_wide_profile_is_fast_3m_with_a_wider_network_at_half_the_step_sizes_and_larger_updates_late():
-    profiles = expert_profiles()
-    fast_3m, wide = profiles["fast-3m"], profiles["fast-3m-wide"]
-    wide.validate()
-    assert wide.hidden_layers == (512, 512)
-    assert wide.learning_rates == tuple(rate / 2 for rate in fast_3m.learning_rates)
-    assert wide.learning_rate_steps == fast_3m.learning_rate_steps
-    assert [wide.steps_per_update_at(s) for s in (1_999_999, 2_000_000)] == [4096, 16_384]
-    assert [wide.eval_episodes_at(s) for s in (1_999_999, 2_000_000)] == [fast_3m.eval_episodes, 500]
-    assert [wide.action_std_at(s) for s in (0, 2_000_000)] == [0.3, 0.2]
-    unchanged = dataclasses.replace(
-        wide,
-        hidden_layers=fast_3m.hidden_layers,
-        learning_rates=fast_3m.learning_rates,
-        steps_per_update_steps=(),
-        later_steps_per_update=(),
-        eval_episodes_steps=(),
-        later_eval_episodes=(),
-    )
-    assert unchanged == fast_3m
+def test_version_1_settings_of_a_run_folder_still_resume(clip_library, tmp_path, monkeypatch, snippet, tiny):
+    config = with_settings(tiny, {"total_steps": 1536, "learning_rate": "1e-3@0,1e-4@1024"})
+    expert = _interrupted_run(tmp_path, snippet, config, monkeypatch)
+    flat = {  # how the library wrote these settings before the PPO block and schedules
+        **{k: v for k, v in config_to_dict(config).items() if k not in ("ppo", "start_from")},
+        **{k: v for k, v in config_to_dict(config.ppo).items() if k not in ("learning_rate", "entropy_coefficient")},
+        "schedule": "piecewise",
+        "learning_rates": [1e-3, 1e-4],
+        "learning_rate_steps": [1024],
+        "steps_per_update": 512,
+        "steps_per_update_steps": [],
+        "later_steps_per_update": [],
+        "action_std": 0.1,
+        "action_std_steps": [],
+        "later_action_stds": [],
+        "eval_episodes": 3,
+        "eval_episodes_steps": [],
+        "later_eval_episodes": [],
+        "termination_start": 0.0,
+        "termination_curriculum_steps": 0,
+        "snapshot_steps": [],
+        "branch_from": "",
+        "branch_step": 0,
+    }
+    del flat["target_kl"]
+    assert read_expert_settings(flat) == config
+    expert.config.write_text(json.dumps(flat))
+    result = train_expert(snippet, tmp_path, config, progress=False)
+    assert result.steps == 1536 and [e["steps"] for e in json.loads(expert.evaluations.read_text())][-1] == 1536
+    equal_thirds = {**flat, "learning_rates": [1e-5, 6e-6, 3e-6], "learning_rate_steps": [], "total_steps": 3000}
+    assert str(read_expert_settings(equal_thirds).ppo.learning_rate) == "1e-5@0,6e-6@1k,3e-6@2k"
+    with pytest.raises(RemovedSettingError, match="termination curriculum"):
+        read_expert_settings({**flat, "termination_start": 1.0, "termination_curriculum_steps": 1000})
 
 
-def test_a_branch_continues_another_runs_checkpoint_with_its_own_settings(
+def test_a_run_started_from_another_continues_its_checkpoint_with_its_own_settings(
     clip_library, tmp_path, monkeypatch, snippet, tiny
 ):
     config = dataclasses.replace(tiny, total_steps=1536)
     source = _interrupted_run(tmp_path / "source", snippet, config, monkeypatch)
     source_weights = PPO.load(source.checkpoint.model, device="cpu").policy.state_dict()
-    branch = dataclasses.replace(config, gamma=0.99, action_std=0.2, branch_from=str(tmp_path / "source"))
-
-    vec_env = training_envs(training_task((snippet,), str(clip_library), branch), branch)
-    started = ExpertDir(tmp_path / "peek" / snippet)
-    started.root.mkdir(parents=True)
-    model, state, continued = _resume_or_build(started, vec_env, None, branch)
+    started = with_settings(config, {"gamma": 0.99, "action_std": "0.2", "start_from": str(tmp_path / "source")})
+    vec_env = training_envs(training_task((snippet,), str(clip_library), started), started)
+    model, _, continued = _resume_or_build(ExpertDir(tmp_path / "new" / snippet), vec_env, None, started)
     assert continued and model.num_timesteps == 512 and model.gamma == 0.99
-    assert model.get_vec_normalize_env().gamma == 0.99 and state["next_eval"] == 1024
-    weights = model.policy.state_dict()
-    for name, value in source_weights.items():  # the source's networks, only the fixed noise is the branch's
+    assert model.get_vec_normalize_env().gamma == 0.99
+    for name, value in source_weights.items():  # the other run's networks, only the fixed noise is this run's
         expected = torch.full_like(value, np.log(0.2)) if name == "log_std" else value
-        assert torch.allclose(weights[name], expected), name
+        torch.testing.assert_close(model.policy.state_dict()[name], expected)
     vec_env.close()
 
-    result = train_expert(snippet, tmp_path / "branch", branch, progress=False)
-    assert result.stop_reason == "budget" and result.steps == 1536
-    expert = ExpertDir(tmp_path / "branch" / snippet)
-    evaluations = json.loads(expert.evaluations.read_text())
-    assert [e["steps"] for e in evaluations] == [0, 512, 1024, 1536]  # the source's curve, then the branch's
-    assert [("branched_from" in e) for e in evaluations] == [True, True, False, False]
-    assert result.best["steps"] >= 1024  # the best model is one of the branch's own
-    policy = load_expert(expert.root)
-    assert policy.gamma == 0.99 and policy.spec.action_std == pytest.approx(0.2)
-    with expert.progress.open() as handle:
-        assert [int(row["time/total_timesteps"]) for row in csv.DictReader(handle)] == [512, 1024, 1536]
-    assert source.checkpoint.state.is_file()  # the source is left as it was: it can still resume
+    result = train_expert(snippet, tmp_path / "new", started, progress=False)
+    evaluations = json.loads(ExpertDir(tmp_path / "new" / snippet).evaluations.read_text())
+    assert [e["steps"] for e in evaluations] == [0, 512, 1024, 1536]  # the other run's curve, then this one's
+    assert [("started_from" in e) for e in evaluations] == [True, True, False, False]
+    assert result.best is not None and result.best["steps"] >= 1024  # the kept expert is one of this run's own
 
 
-def test_a_branch_starts_with_its_noise_schedules_value_at_the_sources_step(
-    clip_library, tmp_path, monkeypatch, snippet, tiny
+def test_a_run_starts_from_a_finished_runs_kept_expert_and_needs_its_networks(
+    clip_library, tmp_path, trained_expert, snippet, tiny
 ):
-    config = dataclasses.replace(tiny, total_steps=1536, action_std=0.3)
-    source = _interrupted_run(tmp_path / "source", snippet, config, monkeypatch)  # checkpoint at step 512
-    branch = dataclasses.replace(
-        config, action_std_steps=(256, 1024), later_action_stds=(0.2, 0.1), branch_from=str(tmp_path / "source")
-    )
-    vec_env = training_envs(training_task((snippet,), str(clip_library), branch), branch)
-    started = ExpertDir(tmp_path / "peek" / snippet)
-    started.root.mkdir(parents=True)
-    model, _, _ = _resume_or_build(started, vec_env, None, branch)
-    source_std = PPO.load(source.checkpoint.model, device="cpu").policy.log_std.detach().exp()
-    assert torch.allclose(source_std, torch.tensor(0.3))
-    assert torch.allclose(model.policy.log_std.exp(), torch.tensor(0.2))  # 0.2 from 256 on, 0.1 from 1024
-    vec_env.close()
-
-
-def test_a_branch_of_a_finished_run_starts_from_its_kept_expert(clip_library, tmp_path, trained_expert, snippet, tiny):
     source = ExpertDir(trained_expert)
     best = json.loads(source.done.read_text())["best"]
-    before = {path.name: path.read_bytes() for path in (source.done, source.evaluations, source.best_model)}
-    kept_weights = PPO.load(source.best_model, device="cpu").policy.state_dict()
-    branch = dataclasses.replace(
-        tiny, total_steps=best["steps"] + 512, action_std=0.2, branch_from=str(trained_expert.parent)
-    )
-    vec_env = training_envs(training_task((snippet,), str(clip_library), branch), branch)
-    started = ExpertDir(tmp_path / "peek" / snippet)
-    started.root.mkdir(parents=True)
-    model, state, continued = _resume_or_build(started, vec_env, None, branch)
-    vec_env.close()
-    assert continued and model.num_timesteps == best["steps"]
-    weights = model.policy.state_dict()
-    for name, value in kept_weights.items():  # the kept expert's networks, with the branch's noise
-        expected = torch.full_like(value, np.log(0.2)) if name == "log_std" else value
-        assert torch.allclose(weights[name], expected), name
-    source_steps = [e["steps"] for e in json.loads(source.evaluations.read_text())]
-    assert [e["steps"] for e in state["evaluations"]] == [s for s in source_steps if s <= best["steps"]]
-    assert all(e["branched_from"] == str(source.root) for e in state["evaluations"])
-    assert state["wall_seconds_before"] == pytest.approx(best["wall_seconds"])
-
-    result = train_expert(snippet, tmp_path / "branch", branch, progress=False)
-    assert result.steps == best["steps"] + 512 and result.best["steps"] > best["steps"]
-    assert {path.name: path.read_bytes() for path in (source.done, source.evaluations, source.best_model)} == before
-
-
-def test_a_branch_needs_a_checkpoint_or_a_kept_expert_and_the_sources_networks(
-    clip_library, tmp_path, monkeypatch, snippet, tiny
-):
-    config = dataclasses.replace(tiny, total_steps=1536)
+    started = with_settings(tiny, {"total_steps": best["steps"] + 512, "start_from": str(trained_expert.parent)})
+    result = train_expert(snippet, tmp_path / "new", started, progress=False)
+    assert result.steps == best["steps"] + 512
+    evaluations = json.loads(ExpertDir(Path(result.directory)).evaluations.read_text())
+    assert [e["steps"] for e in evaluations if "started_from" in e][-1] == best["steps"]
     with pytest.raises(ExpertFilesError, match="no checkpoint and no kept expert"):
-        train_expert(snippet, tmp_path / "b1", dataclasses.replace(config, branch_from=str(tmp_path)), progress=False)
-    _interrupted_run(tmp_path / "source", snippet, config, monkeypatch)
-    wider = dataclasses.replace(config, hidden_layers=(64, 64), branch_from=str(tmp_path / "source"))
-    with pytest.raises(ConfigMismatchError, match=r"hidden_layers=\(32, 32\)"):
+        train_expert(snippet, tmp_path / "b1", with_settings(tiny, {"start_from": str(tmp_path)}), progress=False)
+    wider = with_settings(tiny, {"hidden_layers": (64, 64), "start_from": str(trained_expert.parent)})
+    with pytest.raises(ConfigMismatchError, match="hidden_layers"):
         train_expert(snippet, tmp_path / "b2", wider, progress=False)
 
 
-def test_snapshots_are_kept_after_training_without_changing_it_and_a_branch_starts_from_one(
-    clip_library, tmp_path, trained_expert, snippet, tiny
-):
-    config = dataclasses.replace(tiny, snapshot_steps=(500, 1024))
-    train_expert(snippet, tmp_path / "source", config, progress=False)
-    source = ExpertDir(tmp_path / "source" / snippet)
-    assert not source.checkpoint_dir.exists() and source.snapshot_steps() == [500, 1024]
-    states = {s: json.loads(source.snapshot(s).state.read_text()) for s in (500, 1024)}
-    assert [states[s]["steps"] for s in (500, 1024)] == [500, 1024]
-    assert [e["steps"] for e in states[1024]["evaluations"]] == [0, 512, 1024]  # taken after that step's evaluation
-    unsnapshotted = json.loads(ExpertDir(trained_expert).evaluations.read_text())  # the same settings, no snapshots
-    scores = [(e["normalized_length"], e["normalized_reward"]) for e in json.loads(source.evaluations.read_text())]
-    assert scores == [(e["normalized_length"], e["normalized_reward"]) for e in unsnapshotted]
-
-    branch = dataclasses.replace(
-        config, total_steps=1536, snapshot_steps=(), branch_from=str(tmp_path / "source"), branch_step=500
-    )
-    vec_env = training_envs(training_task((snippet,), str(clip_library), branch), branch)
-    started = ExpertDir(tmp_path / "peek" / snippet)
-    started.root.mkdir(parents=True)
-    model, state, continued = _resume_or_build(started, vec_env, None, branch)
-    vec_env.close()
-    assert continued and model.num_timesteps == 500 and [e["steps"] for e in state["evaluations"]] == [0]
-    snapshot_weights = PPO.load(source.snapshot(500).model, device="cpu").policy.state_dict()
-    later_weights = PPO.load(source.snapshot(1024).model, device="cpu").policy.state_dict()
-    weights = model.policy.state_dict()
-    assert all(torch.equal(weights[name], value) for name, value in snapshot_weights.items())
-    assert not all(torch.equal(weights[name], value) for name, value in later_weights.items())  # an update later
-
-    with pytest.raises(ExpertFilesError, match=r"no snapshot for that step \(snapshots there: 500, 1024\)"):
-        train_expert(snippet, tmp_path / "b", dataclasses.replace(branch, branch_step=700), progress=False)
-
-
-def test_snapshot_and_branch_step_settings_are_checked_and_snapshots_do_not_block_a_resume(tiny):
-    with pytest.raises(ValueError, match=r"snapshot_steps \(1000, 500\) must be positive and increasing"):
-        dataclasses.replace(tiny, snapshot_steps=(1000, 500)).validate()
-    with pytest.raises(ValueError, match="give branch_from too"):
-        dataclasses.replace(tiny, branch_step=500).validate()
-    dataclasses.replace(tiny, branch_step=500, branch_from="runs/x", snapshot_steps=(500,)).validate()
-    assert _training_fields(tiny) == _training_fields(dataclasses.replace(tiny, snapshot_steps=(500,)))
-    assert _training_fields(tiny) != _training_fields(dataclasses.replace(tiny, branch_step=500))
-
-
-def test_evaluations_grow_to_later_eval_episodes_from_their_step(tmp_path, clip_library, snippet, tiny):
-    config = dataclasses.replace(tiny, eval_episodes_steps=(1024,), later_eval_episodes=(7,))
+def test_evaluations_grow_with_their_schedule(tmp_path, clip_library, snippet, tiny):
+    config = with_settings(tiny, {"eval_episodes": "3@0,7@1024"})
     result = train_expert(snippet, tmp_path, config, progress=False)
     evaluations = json.loads(ExpertDir(Path(result.directory)).evaluations.read_text())
     assert [(e["steps"], e["episodes"]) for e in evaluations] == [(0, 3), (512, 3), (1024, 7)]
-    assert [config.eval_episodes_at(s) for s in (0, 1023, 1024, 10**9)] == [3, 3, 7, 7]
-    with pytest.raises(ValueError, match=r"eval_episodes_steps .* and later_eval_episodes .* must be as many"):
-        dataclasses.replace(tiny, eval_episodes_steps=(1024,)).validate()
-    with pytest.raises(ValueError, match=r"later_eval_episodes \(0,\) must be positive"):
-        dataclasses.replace(tiny, eval_episodes_steps=(1024,), later_eval_episodes=(0,)).validate()
 
 
-def test_kl_adaptive_learning_rate_follows_the_updates_kl():
-    schedule = KlAdaptiveLearningRate(1e-4, desired_kl=0.01, factor=2.0, low=3e-5, high=2e-4)
-    assert schedule(1.0) == schedule(0.0) == 1e-4  # the remaining progress does not matter
-    assert schedule.update(0.03) == 5e-5  # above twice the target: smaller
-    assert schedule.update(0.015) == 5e-5  # within [0.5, 2] x the target: unchanged
-    assert schedule.update(1.0) == 3e-5  # never below low
-    assert schedule.update(0.001) == 6e-5 and schedule.update(0.0) == 1.2e-4
-    assert schedule.update(0.0) == 2e-4  # never above high
-
-
-def test_adaptive_step_size_learned_noise_reference_observations_and_curriculum(clip_library, tmp_path, snippet, tiny):
+def test_adaptive_step_size_learned_noise_and_reference_observations(clip_library, tmp_path, snippet, tiny):
     from distill.experts.evaluation import EXPERT_REFERENCE_OBSERVABLES
     from distill.gpt.completion import ExpertPrompt
 
-    config = dataclasses.replace(
+    config = with_settings(
         tiny,
-        total_steps=1536,
-        learning_rates=(1e-3,),
-        schedule="adaptive",
-        learn_action_std=True,
-        reference_observations=True,
-        termination_start=1.0,
-        termination_curriculum_steps=1024,
-        eval_at_start=False,
-        eval_every=1024,  # evaluations at 1024 and 1536 follow updates: the kept policy's noise has moved
+        {
+            "total_steps": 1536,
+            "learning_rate": "1e-3",
+            "schedule": "adaptive",
+            "learn_action_std": True,
+            "reference_observations": True,
+            "eval_at_start": False,
+            "eval_every": 1024,  # evaluations at 1024 and 1536 follow updates: the kept policy's noise has moved
+        },
     )
     result = train_expert(snippet, tmp_path, config, progress=False)
     expert = ExpertDir(Path(result.directory))
@@ -468,8 +368,6 @@ def test_adaptive_step_size_learned_noise_reference_observations_and_curriculum(
         rows = list(csv.DictReader(handle))
     rates = [float(row["train/learning_rate"]) for row in rows if row["train/learning_rate"]]
     assert rates[0] == 1e-3 and len(set(rates)) > 1  # adapted after the first update
-    thresholds = [float(row["train/termination_threshold"]) for row in rows]
-    assert thresholds == pytest.approx([1.0, 0.65, 0.3])  # loose to the paper's 0.3 over 1024 steps
     policy = load_expert(expert.root)
     assert set(EXPERT_REFERENCE_OBSERVABLES) <= set(policy.keys)
     assert abs(policy.spec.action_std - 0.1) > 1e-6  # learned, and recorded as the expert's noise
@@ -477,51 +375,16 @@ def test_adaptive_step_size_learned_noise_reference_observations_and_curriculum(
     assert all(np.isfinite(e["normalized_reward"]) for e in json.loads(expert.evaluations.read_text()))
 
 
-def test_a_resumed_adaptive_schedule_continues_from_its_saved_step_size():
-    from distill.experts.training import _learning_rate
-
-    config = ExpertConfig(schedule="adaptive", learning_rates=(3e-4,))
-    assert _learning_rate(config, None)(1.0) == 3e-4
-    assert _learning_rate(config, {"learning_rate": 2e-5})(0.5) == 2e-5  # the checkpoint's state
-    assert isinstance(_learning_rate(ExpertConfig(), {"learning_rate": 2e-5}), PiecewiseLearningRate)
-
-
-def test_termination_curriculum_settings():
-    config = ExpertConfig(termination_start=0.9, termination_curriculum_steps=1000)
-    assert [config.training_threshold(s) for s in (0, 500, 1000, 5000)] == pytest.approx([0.9, 0.6, 0.3, 0.3])
-    assert ExpertConfig().training_threshold(0) == 0.3
-    with pytest.raises(ValueError, match="termination_start"):
-        ExpertConfig(termination_curriculum_steps=1000).validate()
-
-
-def test_learning_rate_thirds():
-    schedule = PiecewiseLearningRate((1e-5, 6e-6, 3e-6))
-    assert [schedule(p) for p in (1.0, 0.7, 0.66, 0.4, 0.2, 0.0)] == [1e-5, 1e-5, 6e-6, 6e-6, 3e-6, 3e-6]
-
-
-def test_learning_rate_switch_steps():
-    schedule = PiecewiseLearningRate((3e-4, 1e-4), switch_steps=(600_000,), total_steps=3_000_000)
-    remaining = [1 - s / 3_000_000 for s in (0, 599_999, 600_000, 2_000_000, 3_000_000)]
-    assert [schedule(p) for p in remaining] == [3e-4, 3e-4, 1e-4, 1e-4, 1e-4]
-    ExpertConfig(learning_rates=(3e-4, 1e-4, 3e-5), learning_rate_steps=(600_000, 2_000_000)).validate()
-    with pytest.raises(ValueError, match="one step fewer"):
-        ExpertConfig(learning_rates=(3e-4, 1e-4), learning_rate_steps=(1, 2)).validate()
-    with pytest.raises(ValueError, match="increasing"):
-        ExpertConfig(learning_rates=(3e-4, 1e-4, 3e-5), learning_rate_steps=(5, 5)).validate()
-    with pytest.raises(ValueError, match="piecewise"):
-        ExpertConfig(learning_rates=(3e-4, 1e-4), learning_rate_steps=(5,), schedule="adaptive").validate()
-
-
 def test_early_stopping_rule():
     config = ExpertConfig(early_stop_length=0.98, early_stop_improvement=0.01, early_stop_patience=10_000_000)
-    state = {"plateau_reward": None, "plateau_since": None}
+    state = RunState()
     assert keep_training(state, 0.97, 0.5, 1_000_000, config)  # too short: no plateau yet
     assert keep_training(state, 0.99, 0.60, 2_000_000, config)  # plateau starts
     assert keep_training(state, 0.99, 0.605, 8_000_000, config)  # +0.8%: not an improvement
     assert not keep_training(state, 0.99, 0.605, 12_000_000, config)  # 10M steps without one
-    state = {"plateau_reward": 0.6, "plateau_since": 2_000_000}
+    state = RunState(plateau_reward=0.6, plateau_since=2_000_000)
     assert keep_training(state, 0.99, 0.61, 12_000_000, config)  # +1.7% resets the count
-    assert state["plateau_since"] == 12_000_000
+    assert state.plateau_since == 12_000_000
 
 
 def test_missing_expert_files_are_named(tmp_path, trained_expert, snippet):
@@ -582,7 +445,7 @@ def test_automatic_environment_count_divides_the_update(monkeypatch):
 
     monkeypatch.setattr(module, "available_cores", lambda: 6)
     assert ExpertConfig().resolved_envs() == 4  # 8192 steps split over 4 environments
-    assert ExpertConfig(steps_per_update=6000).resolved_envs() == 6
+    assert ExpertConfig(steps_per_update=Schedule.constant(6000)).resolved_envs() == 6
     ExpertConfig().validate()
     with pytest.raises(ValueError, match="multiple of the number of environments"):
         ExpertConfig(n_envs=3).validate()

@@ -85,7 +85,7 @@ def test_view_explains_how_to_open_a_file_without_a_display(tmp_path, capsys, mo
 
 def test_high_level_policy_over_a_decoder_records_latents_and_refuses_other_tasks(tmp_path, capsys):
     from hierarchy.transfer import train_transfer
-    from tests.hierarchy.test_transfer import TINY
+    from tests.hierarchy.transfer_settings import TINY
 
     decoder_file = small_decoder().save(tmp_path / "decoder.safetensors")
     policy_file = train_transfer("velocity_control", tmp_path / "vc", decoder_file, TINY, {"max_steps": 30}, False)

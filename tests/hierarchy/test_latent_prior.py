@@ -16,7 +16,7 @@ from hierarchy.task_policy import load_task_policy
 from hierarchy.transfer import evaluate_transfer, train_transfer
 
 from .test_decoder import small_decoder
-from .test_transfer import TINY
+from .transfer_settings import TINY
 
 
 def small_prior(seed: int = 0, latent: int = 6, decoder_seed: int = 0) -> LatentPrior:

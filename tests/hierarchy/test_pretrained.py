@@ -16,7 +16,7 @@ from hierarchy.transfer import evaluate_transfer, train_transfer
 from mocap_hierarchy.cli import main
 
 from .test_decoder import small_decoder
-from .test_transfer import TINY
+from .transfer_settings import TINY
 
 CARD = {
     "name": "tiny-v1",

@@ -1,3 +1,6 @@
+import subprocess
+import sys
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -29,6 +32,31 @@ def test_gymnasium_ids(clip_library, name):
     observation, _ = env.reset(seed=1)
     assert observation in env.observation_space
     env.close()
+
+
+def test_gymnasium_ids_work_in_a_fresh_interpreter_with_no_task_made_first(clip_library):
+    """The guide's use: Gymnasium imported, then ``tasks``, then ``gymnasium.make(id)``; ``import tasks`` alone
+    loads no Gymnasium, and after it :func:`tasks.register_with_gymnasium` makes the ids."""
+    code = (
+        "import gymnasium\n"
+        "import tasks\n"
+        "print(sorted(i for i in gymnasium.registry if i.startswith('MocapHierarchy/')))\n"
+        "env = gymnasium.make('MocapHierarchy/VelocityControl-v0', max_steps=3)\n"
+        "print(type(env.unwrapped).__name__, env.unwrapped.config.max_steps)\n"
+    )
+    lines = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.splitlines()
+    assert lines[0] == str(sorted(entry.gym_id for entry in REGISTRY.values()))
+    assert lines[1] == "VelocityControlEnv 3"  # keyword arguments of gymnasium.make reach the config
+    code = (
+        "import sys\n"
+        "import tasks\n"
+        "print('gymnasium' in sys.modules)\n"
+        "tasks.register_with_gymnasium()\n"
+        "import gymnasium\n"
+        "print(gymnasium.spec('MocapHierarchy/GoToTarget-v0').kwargs)\n"
+    )
+    lines = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.splitlines()
+    assert lines == ["False", "{'name': 'go_to_target'}"]
 
 
 def test_overrides_reach_the_config(clip_library):
@@ -98,7 +126,9 @@ def user_task(tmp_path, monkeypatch):
 def test_builtin_tracking_task_tracks_the_whole_synthetic_library():
     from tasks.clips.synthetic.library import SYNTHETIC_CLIPS
 
-    assert REGISTRY["tracking"].defaults["snippets"] == tuple(recipe.clip_id for recipe in SYNTHETIC_CLIPS)
+    config = REGISTRY["tracking"].config()
+    assert config.snippets == tuple(recipe.clip_id for recipe in SYNTHETIC_CLIPS)
+    assert REGISTRY["tracking"].config(snippets=("SYN_wave",)).snippets == ("SYN_wave",)  # an override wins
 
 
 def test_a_registered_user_task_is_a_task_like_the_builtin_ones(clip_library, user_task, capsys):
@@ -144,7 +174,7 @@ def test_an_installed_package_adds_tasks_through_the_entry_point_group(user_task
 
     name, _ = user_task
     plugin = metadata.EntryPoint(name="mine", value="my_tasks_for_test:register_all", group=registry.ENTRY_POINT_GROUP)
-    monkeypatch.setattr(registry.metadata, "entry_points", lambda group: [plugin] if group == plugin.group else [])
+    monkeypatch.setattr(metadata, "entry_points", lambda group: [plugin] if group == plugin.group else [])
     monkeypatch.setattr(registry, "_plugins_loaded", False)
     assert name not in REGISTRY
     assert registry.entry(name).description == "stand still (a test task)"  # loaded on first look-up

@@ -1,0 +1,277 @@
+"""High-level training on any registered task or env factory, with or without a frozen decoder (the paper's B.3).
+
+``train_transfer("velocity_control", out, decoder="decoder.safetensors")``
+trains stable-baselines3 PPO in the decoder's latent space (initial standard
+deviation 2.5, latents within +-3); without a decoder the same PPO acts on
+joint targets directly (standard deviation 0.5, actions within +-1): the
+paper's baseline. The decoder stays frozen: it is never given to the optimiser
+(a test proves its weights are bit-identical after an update).
+
+Writes into ``out`` (see :mod:`hierarchy.transfer.run_folder`): ``policy.safetensors``
+(the pickle-free policy, see :mod:`hierarchy.task_policy`), ``progress.csv`` and
+``tensorboard/`` (SB3's logs), ``transfer.json`` (settings and outcome) and, while
+training, ``checkpoint/`` (SB3's own files and the settings record, to resume an
+interrupted run).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+from stable_baselines3.common.callbacks import BaseCallback
+from tqdm.auto import tqdm
+
+from foundation.atomic import write_json
+from foundation.config_files import config_to_dict
+from foundation.fingerprints import file_sha256
+from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
+from foundation.provenance import provenance
+from foundation.sb3 import SAVE_EXCLUDE, build_ppo, load_ppo, resumable_logger, save_sb3
+from hierarchy.decoder import LatentDecoder, load_decoder
+from hierarchy.latent_env import LatentActionVecEnv
+from hierarchy.latent_prior import LatentPrior, load_latent_prior, resolve_prior, shipped_prior_name
+from hierarchy.pretrained import pretrained_name, resolve_decoder
+from hierarchy.task_policy import task_policy_from_sb3
+from hierarchy.transfer.config import TASK_RETURN_KEY, TransferConfig
+from hierarchy.transfer.run_folder import (
+    CHECKPOINT_DIR,
+    MODEL_FILE,
+    NORMALISER_FILE,
+    POLICY_FILE,
+    SUMMARY_FILE,
+    TASK_RETURNS_FILE,
+    TaskReturns,
+    check_resume,
+    resume_settings,
+)
+from hierarchy.transfer.task_source import TaskSource
+
+
+def train_transfer(
+    task: str | Callable[[], gym.Env],
+    out: str | os.PathLike,
+    decoder: str | os.PathLike | None = None,
+    config: TransferConfig | None = None,
+    task_overrides: dict[str, Any] | None = None,
+    progress: bool = True,
+    task_name: str | None = None,
+    latent_prior: str | os.PathLike | None = None,
+) -> Path:
+    """Trains a high-level policy on a task; returns the policy file.
+
+    Reads top to bottom: settings, the task and decoder, the resume check, a new
+    or resumed PPO, the training loop, the policy file.
+
+    Args:
+        task: A registered task name (``tasks.task_names()``, including tasks added with
+            ``tasks.register``) or a function that builds one environment (picklable when
+            ``config.subprocess_envs``: a module-level function or class, or one in your script).
+        out: Output folder; an interrupted run in it is resumed.
+        decoder: A decoder file or a shipped decoder's name (``synthetic-v1``); None trains
+            the no-decoder baseline.
+        config: PPO settings (defaults: the paper's Table 3).
+        task_overrides: Config fields of a registered task to change.
+        progress: Show a progress bar.
+        task_name: Label recorded for a factory (default: its ``__name__``).
+        latent_prior: A latent prior file of the decoder, or the shipped decoder's name
+            (``synthetic-v3``): the policy's actions become residuals on the prior's mean
+            (:mod:`hierarchy.latent_prior`). None: actions are the latents themselves.
+
+    Raises:
+        hierarchy.DecoderMismatchError: The decoder does not fit the task (or the prior the decoder).
+        foundation.resume.SettingsMismatchError: ``out`` holds a run of other settings.
+    """
+    config = config or TransferConfig()
+    config.validate()
+    out = Path(out)
+    source = TaskSource.of(task, task_overrides, task_name)
+    decoder = resolve_decoder(decoder) if decoder is not None else None
+    frozen = load_decoder(decoder) if decoder is not None else None
+    decoder_sha = file_sha256(decoder) if decoder is not None else None
+    behaviour_sha = frozen.behaviour_sha256() if frozen is not None else None
+    prior, prior_facts = _prior_for(latent_prior, frozen)
+    checkpoint = out / CHECKPOINT_DIR
+    prior_sha = prior_facts["sha256"] if prior_facts is not None else None
+    check_resume(
+        checkpoint, resume_settings(source.name, source.overrides, decoder_sha, config, prior_sha), behaviour_sha
+    )
+
+    venv = _vec_env(source, frozen, config, prior)
+    model = _resume_or_build(checkpoint, venv, config, with_decoder=frozen is not None, out=out)
+    resumed = model.num_timesteps > 0
+    model.set_logger(resumable_logger(out, ["csv", "tensorboard"], resumed=resumed))
+
+    task_returns = TaskReturns.load(checkpoint / TASK_RETURNS_FILE) if resumed else TaskReturns()
+    remaining = config.total_steps - model.num_timesteps
+    if remaining > 0:
+        with stop_requests() as stop:
+            callback = _ProgressAndCheckpoint(
+                config.total_steps, config.checkpoint_every, checkpoint, progress, config.ppo.epochs, stop, task_returns
+            )
+            model.learn(remaining, callback=callback, reset_num_timesteps=False)
+            if stop.requested:
+                venv.close()
+                raise stop.stop(f"transfer: stopped at step {model.num_timesteps}", "run the same command again")
+
+    path = _save_policy(out, model, source, decoder, decoder_sha, config, prior_facts, behaviour_sha)
+    _save_resume_files(model, checkpoint, task_returns)
+    venv.close()
+    return path
+
+
+def _prior_for(
+    latent_prior: str | os.PathLike | None, decoder: LatentDecoder | None
+) -> tuple[LatentPrior | None, dict[str, Any] | None]:
+    """The prior to act around and the facts a policy records about it (``path``, ``name``, ``sha256``)."""
+    if latent_prior is None:
+        return None, None
+    if decoder is None:
+        raise ValueError("a latent prior belongs to a decoder: pass --decoder too")
+    path = resolve_prior(latent_prior)
+    prior = load_latent_prior(path)
+    prior.check_fits(decoder)
+    return prior, {"path": str(path.resolve()), "name": shipped_prior_name(path), "sha256": file_sha256(path)}
+
+
+def _vec_env(
+    source: TaskSource, decoder: LatentDecoder | None, config: TransferConfig, prior: LatentPrior | None = None
+):
+    """Raw task environments, decoded in one batch, then SB3's observation/reward normaliser."""
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
+
+    use_processes = config.subprocess_envs and config.n_envs > 1
+    venv = make_vec_env(
+        functools.partial(_worker_env, source.factory) if use_processes else source.factory,
+        n_envs=config.n_envs,
+        seed=config.seed,
+        vec_env_cls=SubprocVecEnv if use_processes else DummyVecEnv,
+        vec_env_kwargs={"start_method": "spawn"} if use_processes else None,
+    )
+    if decoder is not None:
+        venv = LatentActionVecEnv(venv, decoder, config.max_latent, config.steps_per_latent, prior)
+    return VecNormalize(venv, norm_obs=True, norm_reward=config.normalize_reward, gamma=config.ppo.gamma)
+
+
+def _worker_env(factory: Callable[[], gym.Env]) -> gym.Env:
+    """The task in a worker process, which leaves Ctrl-C to the trainer (it stops cleanly and closes us)."""
+    ignore_interrupts_in_worker()
+    return factory()
+
+
+def _resume_or_build(checkpoint: Path, venv, config: TransferConfig, with_decoder: bool, out: Path):
+    """The run's own checkpoint when there is one (SB3 needs its pickles for the optimiser), else a new PPO."""
+    model_file, normaliser_file = checkpoint / MODEL_FILE, checkpoint / NORMALISER_FILE
+    if model_file.is_file() and normaliser_file.is_file():
+        assert venv.venv is not None
+        model = load_ppo(model_file, normaliser_file, venv.venv, config.ppo, config.device)
+        print(f"resuming {out} from step {model.num_timesteps}")
+        return model
+    steps_per_env = config.steps_per_update // config.n_envs
+    return build_ppo(venv, config.ppo, steps_per_env, config.std_for(with_decoder), config.seed, config.device)
+
+
+def _save_policy(
+    out: Path,
+    model,
+    source: TaskSource,
+    decoder: str | os.PathLike | None,
+    decoder_sha: str | None,
+    config: TransferConfig,
+    prior_facts: dict[str, Any] | None = None,
+    behaviour_sha: str | None = None,
+) -> Path:
+    """Writes ``policy.safetensors`` (pickle-free) and ``transfer.json``."""
+    decoder_facts = None
+    if decoder is not None:
+        decoder_facts = {
+            "path": str(Path(decoder).resolve()),
+            # A shipped decoder is found by name on another installation, where its path differs.
+            "name": pretrained_name(decoder),
+            "sha256": decoder_sha,
+            # Accepted in place of the file's SHA-256 by evaluation: the same weights under another card.
+            "behaviour_sha256": behaviour_sha,
+            "max_latent": config.max_latent,
+            "steps_per_latent": config.steps_per_latent,
+        }
+        if prior_facts is not None:
+            decoder_facts["latent_prior"] = prior_facts
+    policy = task_policy_from_sb3(
+        model,
+        model.get_vec_normalize_env(),
+        {
+            "task": source.name,
+            "task_overrides": source.overrides,
+            "decoder": decoder_facts,
+            "provenance": provenance(steps=int(model.num_timesteps), config=config_to_dict(config)),
+        },
+    )
+    path = policy.save(out / POLICY_FILE)
+    summary = {"task": source.name, "task_overrides": source.overrides, "decoder": decoder_facts}
+    write_json(out / SUMMARY_FILE, {**summary, "config": config_to_dict(config)})
+    return path
+
+
+def _save_resume_files(model, folder: Path, task_returns: TaskReturns) -> None:
+    """SB3's model and normaliser (the run's own resume files), and the task returns the log averages."""
+    task_returns.save(folder / TASK_RETURNS_FILE)
+    save_sb3(model, model.get_vec_normalize_env(), folder / MODEL_FILE, folder / NORMALISER_FILE, SAVE_EXCLUDE)
+
+
+class _ProgressAndCheckpoint(BaseCallback):
+    """Progress bar, resume files and the task's own return for one training run.
+
+    The bar counts environment steps (and says when PPO updates), resume files are written
+    every ``every`` steps, and the task's return is logged beside SB3's (:data:`TASK_RETURN_KEY`).
+    """
+
+    def __init__(
+        self,
+        total: int,
+        every: int,
+        folder: Path,
+        progress: bool,
+        epochs: int,
+        stop: StopFlag,
+        task_returns: TaskReturns,
+    ) -> None:
+        super().__init__()
+        self.total, self.every, self.folder, self.progress, self.epochs = total, every, folder, progress, epochs
+        self.stop, self.task_returns = stop, task_returns
+
+    def _on_training_start(self) -> None:
+        steps = self.model.num_timesteps
+        self.bar = tqdm(total=self.total, initial=steps, desc="high-level PPO", unit="step", disable=not self.progress)
+        self.next_save = (steps // self.every + 1) * self.every
+
+    def _on_rollout_start(self) -> None:
+        self.bar.set_postfix_str("")
+        self.rollout_began = self.model.num_timesteps
+
+    def _on_step(self) -> bool:
+        self.bar.update(self.model.num_timesteps - self.bar.n)
+        self.task_returns.add(self.locals.get("infos", ()), self.locals.get("dones", ()))
+        if self.model.num_timesteps >= self.next_save:
+            _save_resume_files(self.model, self.folder, self.task_returns)
+            self.next_save += self.every
+        if self.stop.requested:  # Ctrl-C or SIGTERM: save where we are and leave PPO's loop
+            _save_resume_files(self.model, self.folder, self.task_returns)
+            return False
+        return True
+
+    def _on_rollout_end(self) -> None:
+        # The bar stands still while PPO updates on the rollout (after the last one, at 100%): say so.
+        rollout = self.model.num_timesteps - self.rollout_began
+        self.bar.set_postfix_str(f"PPO update: up to {self.epochs} epochs over {rollout} steps")
+        task_return = self.task_returns.mean()
+        if task_return is not None:  # written with this update's row of progress.csv
+            self.logger.record(TASK_RETURN_KEY, task_return)
+
+    def _on_training_end(self) -> None:
+        self.bar.set_postfix_str("", refresh=False)
+        self.bar.close()
