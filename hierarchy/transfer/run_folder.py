@@ -43,6 +43,7 @@ MODEL_FILE = "model.zip"  # in CHECKPOINT_DIR, with the normaliser: SB3's own re
 NORMALISER_FILE = "vecnormalize.pkl"
 TASK_RETURNS_FILE = "task_returns.json"  # beside SB3's resume files: the window the log averages
 SETTINGS_FILE = "settings.json"
+STEP_SIZE_FILE = "step_size.json"  # in CHECKPOINT_DIR under the adaptive rule: the step size it reached
 
 RECORD_VERSION = 2
 """The version :func:`check_resume` writes; :func:`read_settings_record` reads every version up to it."""

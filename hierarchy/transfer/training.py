@@ -17,13 +17,14 @@ interrupted run).
 from __future__ import annotations
 
 import functools
+import json
 import os
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from tqdm.auto import tqdm
 
 from foundation.atomic import write_json
@@ -31,7 +32,8 @@ from foundation.config_files import config_to_dict
 from foundation.fingerprints import file_sha256
 from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
 from foundation.provenance import provenance
-from foundation.sb3 import SAVE_EXCLUDE, build_ppo, load_ppo, resumable_logger, save_sb3
+from foundation.sb3 import SAVE_EXCLUDE, StepSize, build_ppo, load_ppo, resumable_logger, save_sb3
+from foundation.sb3_callbacks import AdaptiveStepSize
 from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionVecEnv
 from hierarchy.latent_prior import LatentPrior, load_latent_prior, resolve_prior, shipped_prior_name
@@ -43,6 +45,7 @@ from hierarchy.transfer.run_folder import (
     MODEL_FILE,
     NORMALISER_FILE,
     POLICY_FILE,
+    STEP_SIZE_FILE,
     SUMMARY_FILE,
     TASK_RETURNS_FILE,
     TaskReturns,
@@ -113,7 +116,7 @@ def train_transfer(
             callback = _ProgressAndCheckpoint(
                 config.total_steps, config.checkpoint_every, checkpoint, progress, config.ppo.epochs, stop, task_returns
             )
-            model.learn(remaining, callback=callback, reset_num_timesteps=False)
+            model.learn(remaining, callback=CallbackList([callback, AdaptiveStepSize()]), reset_num_timesteps=False)
             if stop.requested:
                 venv.close()
                 raise stop.stop(f"transfer: stopped at step {model.num_timesteps}", "run the same command again")
@@ -169,7 +172,9 @@ def _resume_or_build(checkpoint: Path, venv, config: TransferConfig, with_decode
     model_file, normaliser_file = checkpoint / MODEL_FILE, checkpoint / NORMALISER_FILE
     if model_file.is_file() and normaliser_file.is_file():
         assert venv.venv is not None
-        model = load_ppo(model_file, normaliser_file, venv.venv, config.ppo, config.device)
+        saved_step_size = checkpoint / STEP_SIZE_FILE  # the adaptive rule's, where it was saved
+        step_size = json.loads(saved_step_size.read_text())["learning_rate"] if saved_step_size.is_file() else None
+        model = load_ppo(model_file, normaliser_file, venv.venv, config.ppo, config.device, step_size)
         print(f"resuming {out} from step {model.num_timesteps}")
         return model
     steps_per_env = config.steps_per_update // config.n_envs
@@ -218,8 +223,14 @@ def _save_policy(
 
 
 def _save_resume_files(model, folder: Path, task_returns: TaskReturns) -> None:
-    """SB3's model and normaliser (the run's own resume files), and the task returns the log averages."""
+    """SB3's model and normaliser (the run's own resume files) and the task returns the log averages.
+
+    Under the adaptive rule, also the step size it reached (the model file leaves the step size out).
+    """
     task_returns.save(folder / TASK_RETURNS_FILE)
+    step_size = model.lr_schedule
+    if isinstance(step_size, StepSize) and step_size.ppo.schedule == "adaptive":
+        write_json(folder / STEP_SIZE_FILE, {"learning_rate": step_size.value})
     save_sb3(model, model.get_vec_normalize_env(), folder / MODEL_FILE, folder / NORMALISER_FILE, SAVE_EXCLUDE)
 
 

@@ -15,6 +15,7 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 import tasks
+from foundation.config_files import with_settings
 from hierarchy import LatentActionVecEnv
 from hierarchy.task_policy import load_task_policy, task_policy_from_sb3
 from hierarchy.transfer import TransferConfig, evaluate_transfer, train_transfer
@@ -163,3 +164,25 @@ def test_a_shaped_task_is_logged_and_evaluated_on_its_own_reward(tmp_path):
     np.testing.assert_allclose(run.returns, task)  # the report and transfer_table read the task's return
     summary = evaluate_transfer(policy, episodes=3)
     assert all(r == int(r) and 0 <= r <= 20 for r in summary.returns)  # the task's 0/1 rewards, no shaping
+
+
+def _logged_step_sizes(out) -> dict[int, float]:
+    with (out / "progress.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    return {int(r["time/total_timesteps"]): float(r["train/learning_rate"]) for r in rows if r["train/learning_rate"]}
+
+
+def test_the_step_size_follows_its_schedule_or_the_adaptive_rule_also_across_a_resume(tmp_path):
+    scheduled = with_settings(TINY, {"total_steps": 192, "learning_rate": "1e-3@0,1e-4@128"})
+    train_transfer("velocity_control", tmp_path / "scheduled", None, scheduled, {"max_steps": 30}, progress=False)
+    assert _logged_step_sizes(tmp_path / "scheduled") == {128: 1e-3, 192: 1e-4}  # each row: the update before it
+
+    adaptive = with_settings(TINY, {"learning_rate": "1e-3", "schedule": "adaptive", "desired_kl": 1e-6})
+    out = tmp_path / "adaptive"
+    train_transfer("velocity_control", out, None, adaptive, {"max_steps": 30}, progress=False)
+    saved = json.loads((out / "checkpoint" / "step_size.json").read_text())["learning_rate"]
+    assert saved < 1e-3  # a KL far above 1e-6 made the step size smaller
+    longer = dataclasses.replace(adaptive, total_steps=256)
+    train_transfer("velocity_control", out, None, longer, {"max_steps": 30}, progress=False)
+    # The row at 256 logs the resumed run's first update: it went on from the saved step size, not from 1e-3.
+    assert _logged_step_sizes(out)[256] == pytest.approx(saved)
