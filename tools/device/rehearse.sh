@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# Rehearses, on this machine, what the first device call does with the staged parts: a Python 3.12
+# environment standing in for the lent machine's (the packages it has that the staged site leans on,
+# at the lock's versions), the parts joined and checked, the site unpacked first on the path, then
+# tools/device/rehearsal_check.py: every staged package imports under 3.12, Warp starts, MuJoCo Warp
+# builds the walker's model on Warp's CPU device, and the CPU tracking env steps.
+#
+# Usage: bash tools/device/rehearse.sh [STAGED]   (STAGED: a stage.py --for rehearsal output,
+#        default .stage/rehearsal; the stand-in environment is kept in /tmp/mh-rehearsal-venv)
+#
+# Not rehearsed here: what needs torch (the batched env's torch views, rsl_rl, stable-baselines3): the
+# lent machine has torch 2.11 for Python 3.12, and no Python 3.12 torch can be installed here (the
+# registry's cp312 torch is the CUDA build, some gigabytes with its libraries).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+STAGED="${1:-.stage/rehearsal}"
+PYTHON="${PYTHON312:-$(ls -d "$HOME"/.pyenv/versions/3.12*/bin/python3.12 2>/dev/null | tail -1)}"
+VENV=/tmp/mh-rehearsal-venv
+SITE=/tmp/mh-rehearsal-site
+
+if [ ! -x "$VENV/bin/python" ]; then
+    "$PYTHON" -m venv "$VENV"
+    # What the lent machine has and the staged packages import (its own versions may differ a little).
+    "$VENV/bin/python" -m pip install --quiet --root-user-action=ignore \
+        numpy==2.4.6 scipy==1.17.1 lxml==6.1.3 absl-py==2.5.1 protobuf==5.29.6 pyparsing==3.3.3 \
+        requests==2.34.2 tqdm==4.70.1 h5py==3.16.0 safetensors==0.8.0 cloudpickle==3.1.2 packaging==26.3 \
+        typing_extensions==4.16.0 PyYAML==6.0.3
+fi
+
+started=$(date +%s)
+"$VENV/bin/python" tools/device/parts.py join --manifest "$STAGED/parts/manifest.json" --out /tmp/mh-site.tar.xz
+rm -rf "$SITE" && mkdir -p "$SITE"
+tar -xJf /tmp/mh-site.tar.xz -C "$SITE"
+echo "joined, checked and unpacked in $(( $(date +%s) - started )) s: $(du -sh "$SITE" | cut -f1)"
+PYTHONPATH="$SITE:$PWD" "$VENV/bin/python" tools/device/rehearsal_check.py
