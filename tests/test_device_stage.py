@@ -60,7 +60,10 @@ def test_pruning_keeps_what_a_gpu_run_loads_and_the_cpu_compiler_only_for_a_rehe
 
 def test_the_packed_parts_join_and_unpack_to_the_same_site(stage, tmp_path):
     site = _fake_site(tmp_path)
-    manifest = stage.pack(site, tmp_path / "staged", part_mib=0.0002)  # parts of 209 bytes
+    kernels = tmp_path / "kernels" / "1.19.0" / "wp_module_abc1234"
+    kernels.mkdir(parents=True)
+    (kernels / "module.sm90.cubin").write_bytes(b"cubin" * 50)
+    manifest = stage.pack(site, tmp_path / "staged", part_mib=0.0002, kernels=tmp_path / "kernels")  # 209 B parts
     assert len(manifest["parts"]) > 1 and not (tmp_path / "staged" / "site.tar.xz").exists()
     archive = stage.parts.join(tmp_path / "staged" / "parts" / "manifest.json", tmp_path / "site.tar.xz")
     with tarfile.open(archive) as tar:
@@ -68,4 +71,6 @@ def test_the_packed_parts_join_and_unpack_to_the_same_site(stage, tmp_path):
     unpacked = {
         p.relative_to(tmp_path / "unpacked"): p.read_bytes() for p in (tmp_path / "unpacked").rglob("*") if p.is_file()
     }
+    cache = Path(stage.KERNEL_CACHE) / "1.19.0" / "wp_module_abc1234" / "module.sm90.cubin"
+    assert unpacked.pop(cache) == b"cubin" * 50  # the kernel cache travels in the same archive
     assert unpacked == {p.relative_to(site): p.read_bytes() for p in site.rglob("*") if p.is_file()}

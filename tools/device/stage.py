@@ -10,8 +10,12 @@ cannot fetch them. This tool, run here (where the package registries can be reac
 3. ``prune``: removes what a GPU run never loads (:data:`PRUNED`: Warp's CPU compiler, dm_control's
    soccer, dog and fly assets, MuJoCo's experimental viewers, Warp's tests and examples, byte code); ``--for rehearsal``
    keeps Warp's CPU compiler, so the same site runs the CPU-device checks here;
-4. ``pack``: ``site.tar.xz`` cut into parts of at most ``--part-mib`` with a manifest
-   (``tools/device/parts.py``), each small enough to travel in one call beside the working tree.
+4. ``kernels``: the engine's CUDA modules compiled here for sm_90 into a Warp kernel cache
+   (``tools/device/kernels.py compile``; about 2 minutes with a warm CPU cache), so the GPU's
+   minutes are not spent compiling;
+5. ``pack``: the site and, as its top-level folder :data:`KERNEL_CACHE`, the kernel cache, in one
+   ``site.tar.xz`` cut into parts of at most ``--part-mib`` with a manifest (``tools/device/parts.py``),
+   each small enough to travel in one call beside the working tree.
 
 Usage::
 
@@ -75,6 +79,9 @@ PRUNED = (
     "warp/examples",
 )
 """Paths in the site a GPU run never loads (the first is Warp's CPU compiler, kept for a rehearsal)."""
+
+KERNEL_CACHE = "warp-kernel-cache"
+"""The unpacked archive's folder holding the kernel cache (``WARP_CACHE_PATH`` points at it on the device)."""
 
 PLATFORMS = ("manylinux_2_28_x86_64", "manylinux_2_27_x86_64", "manylinux_2_17_x86_64", "manylinux2014_x86_64")
 
@@ -147,13 +154,26 @@ def prune(site: Path, keep_cpu_compiler: bool) -> list[str]:
     return removed
 
 
-def pack(site: Path, out: Path, part_mib: float) -> dict:
-    """``site`` as ``site.tar.xz`` (paths relative to it) cut into parts in ``out/parts``; returns the manifest."""
+def compile_kernels(folder: Path) -> dict:
+    """The engine's CUDA modules for sm_90 compiled into the kernel cache ``folder``; returns its ``kernels.json``."""
+    command = [sys.executable, str(Path(__file__).with_name("kernels.py")), "compile", "--out", str(folder)]
+    subprocess.run([*command, "--arch", "90"], check=True)
+    return json.loads((folder / "kernels.json").read_text())
+
+
+def pack(site: Path, out: Path, part_mib: float, kernels: Path | None = None) -> dict:
+    """``site`` (and ``kernels`` as :data:`KERNEL_CACHE`) as ``site.tar.xz`` cut into parts in ``out/parts``.
+
+    Returns:
+        The parts' manifest.
+    """
     out.mkdir(parents=True, exist_ok=True)
     archive = out / "site.tar.xz"
     with tarfile.open(archive, "w:xz", preset=6) as tar:
         for path in sorted(site.iterdir()):
             tar.add(path, arcname=path.name)
+        if kernels is not None:
+            tar.add(kernels, arcname=KERNEL_CACHE)
     manifest = parts.split(archive, out / "parts", int(part_mib * (1 << 20)))
     archive.unlink()
     return manifest
@@ -189,6 +209,7 @@ def main() -> None:
     parser.add_argument("--python", default=None, help="the Python 3.12 that installs the site (default: found)")
     parser.add_argument("--part-mib", type=float, default=40.0, help="largest part (a call carries 64 MiB in all)")
     parser.add_argument("--wheels", type=Path, default=ROOT / ".stage" / "wheels", help="wheel cache")
+    parser.add_argument("--no-kernels", action="store_true", help="stage no kernel cache (the GPU compiles them)")
     args = parser.parse_args()
     python = python_312(args.python)
     started = time.perf_counter()
@@ -199,9 +220,11 @@ def main() -> None:
     installed = folder_bytes(site)
     removed = prune(site, keep_cpu_compiler=args.purpose == "rehearsal")
     kept = folder_bytes(site)
+    kernels = None if args.no_kernels else args.out / "kernels"
+    compiled = compile_kernels(kernels) if kernels is not None else None
     for old in (args.out / "parts").glob("*"):  # a part-003 of a larger earlier run must not linger
         old.unlink()
-    manifest = pack(site, args.out, args.part_mib)
+    manifest = pack(site, args.out, args.part_mib, kernels)
     summary = {
         "purpose": args.purpose,
         "versions": versions,
@@ -209,6 +232,8 @@ def main() -> None:
         "site_bytes_installed": installed,
         "site_bytes_pruned": kept,
         "pruned": removed,
+        "kernel_cache_bytes": folder_bytes(kernels) if kernels is not None else 0,
+        "kernel_modules": compiled["totals"] if compiled else None,
         "archive_bytes": manifest["size"],
         "parts": [{"name": p["name"], "size": p["size"]} for p in manifest["parts"]],
         "seconds": round(time.perf_counter() - started, 1),
