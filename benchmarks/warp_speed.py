@@ -111,19 +111,8 @@ def _rate(step, worlds: int, steps: int, device: torch.device) -> float:
 
 
 def _launch_without_graph(physics) -> None:
-    """Makes ``physics`` run each control step kernel by kernel, as before its graph was captured.
-
-    The body of :meth:`WarpPhysics.control_step` without the capture (for comparison only).
-    """
-
-    def control_step(ctrl: torch.Tensor) -> None:
-        physics.view.ctrl.copy_(ctrl)
-        physics._advance()
-        if physics.subtree_velocity:
-            with physics._on_device():
-                physics.mjw.subtree_vel(physics.model, physics.data)
-
-    physics.control_step = control_step
+    """Makes ``physics`` run each control step kernel by kernel, without its captured graph (for comparison)."""
+    physics.capture_graph = False
 
 
 def _live_bytes(device: str) -> int:

@@ -83,6 +83,7 @@ class WarpPhysics:
         self._flags = int(self.model.opt.disableflags)
         self.view = TorchViews(self.wp, self.data)
         self._graph = None
+        self.capture_graph = True  # on CUDA, replay each control step as one captured graph (False: launch by launch)
         # Warp runs on torch's current CUDA stream, so torch's writes (controls, resets) and
         # Warp's kernels (and its captured graph) are ordered without extra synchronisation.
         self._stream = None
@@ -100,7 +101,7 @@ class WarpPhysics:
     def control_step(self, ctrl: torch.Tensor) -> None:
         """Sets the controls ``(N, nu)`` and advances every world one control step (0.03 s)."""
         self.view.ctrl.copy_(ctrl)
-        if self.device == "cpu":
+        if self.device == "cpu" or not self.capture_graph:
             self._advance()
         elif self._graph is None:
             self._advance()  # compiles every kernel before capture
