@@ -1,26 +1,22 @@
 """The scripts in benchmarks/: what they measure, and the ratio each prints against its baseline."""
 
 import collections
-import importlib.util
 from pathlib import Path
 
 import pytest
 
 from distill.experts.config import expert_profile
+from tests.script_loading import load_script
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 
 
-def load_script(name: str):
-    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def load_benchmark(name: str):
+    return load_script(BENCHMARKS / f"{name}.py")
 
 
 def test_the_throughput_benchmark_measures_profiles_as_trained_with_evaluations_and_checkpoints_off():
-    throughput = load_script("expert_throughput")
+    throughput = load_benchmark("expert_throughput")
     configs = throughput.profile_configs(["fast-3m", "fast-3m-wide"])
     assert list(configs) == ["fast-3m", "fast-3m-wide"]
     for name, config in configs.items():
@@ -34,7 +30,7 @@ def test_the_throughput_benchmark_measures_profiles_as_trained_with_evaluations_
 
 
 def test_the_profile_gives_each_part_as_a_share_and_against_the_simulator():
-    profile = load_script("expert_profile")
+    profile = load_benchmark("expert_profile")
     shares = collections.Counter({profile.SIMULATOR: 40, "PPO update": 20, "other (waiting, Python, start-up)": 40})
     lines = profile.table(shares, total=100)
     assert lines[0].split() == [*profile.SIMULATOR.split(), "40.0", "%", "1.00", "x", "simulator"]

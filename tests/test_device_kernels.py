@@ -2,27 +2,23 @@
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import sys
 from pathlib import Path
 
 import pytest
 
+from tests.script_loading import load_script
+
 TOOL = Path(__file__).resolve().parents[1] / "tools" / "device" / "kernels.py"
 
 
 @pytest.fixture(scope="module")
 def kernels():
-    spec = importlib.util.spec_from_file_location("device_kernels", TOOL)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module  # its dataclasses look their module up by name
     try:
-        spec.loader.exec_module(module)
-        yield module
+        yield load_script(TOOL, "device_kernels", register=True)  # its dataclasses look their module up by name
     finally:
-        sys.modules.pop(spec.name, None)
+        sys.modules.pop("device_kernels", None)
 
 
 class FakeModule:

@@ -7,7 +7,6 @@ is whole after every stage; a failing stage does not stop the next.
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import json
 import subprocess
 import sys
@@ -17,15 +16,15 @@ from pathlib import Path
 
 import pytest
 
+from tests.script_loading import load_script
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture
 def run(monkeypatch):
     """tools/device/run.py as a module, with budgets for seconds-long stages."""
-    spec = importlib.util.spec_from_file_location("device_run", ROOT / "tools/device/run.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
+    module = load_script(ROOT / "tools/device/run.py", "device_run")
     monkeypatch.setattr(module, "MARGIN_SECONDS", 0.0)
     monkeypatch.setattr(module, "MIN_STAGE_SECONDS", 0.5)
     monkeypatch.setattr(module, "KILL_GRACE_SECONDS", 1.0)

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import sys
 import tarfile
 from pathlib import Path
 
 import pytest
+
+from tests.script_loading import load_script
 
 TOOLS = Path(__file__).resolve().parents[1] / "tools" / "device"
 
@@ -16,11 +17,7 @@ TOOLS = Path(__file__).resolve().parents[1] / "tools" / "device"
 def stage():
     sys.path.insert(0, str(TOOLS))  # stage.py imports parts.py beside it, as when run as a script
     try:
-        spec = importlib.util.spec_from_file_location("device_stage", TOOLS / "stage.py")
-        assert spec is not None and spec.loader is not None
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        yield module
+        yield load_script(TOOLS / "stage.py", "device_stage")
     finally:
         sys.path.remove(str(TOOLS))
 
