@@ -29,7 +29,10 @@ T = TypeVar("T")
 
 
 def field_docs(cls: type) -> dict[str, str]:
-    """Field descriptions from a Google-style ``Attributes:`` docstring section."""
+    """Field descriptions from a Google-style ``Attributes:`` docstring section, in the docstring's markup.
+
+    The command line shows them as plain text (:func:`plain_text`); the configs reference page as Markdown.
+    """
     doc = cls.__doc__ or ""
     match = re.search(r"Attributes:\n(.*)", doc, re.S)
     if not match:
@@ -37,7 +40,7 @@ def field_docs(cls: type) -> dict[str, str]:
     docs: dict[str, str] = {}
     current = None
     for line in match.group(1).splitlines():
-        entry = re.match(r"\s{4,8}(\w+): (.*)", line)
+        entry = re.match(r"\s{4,8}(\w+)(?: \([^)]*\))?: (.*)", line)
         if entry and len(line) - len(line.lstrip()) <= 8:
             current = entry.group(1)
             docs[current] = entry.group(2).strip()
@@ -45,10 +48,10 @@ def field_docs(cls: type) -> dict[str, str]:
             docs[current] += " " + line.strip()
         elif not line.strip() and current:
             current = None
-    return {name: _plain_text(text) for name, text in docs.items()}
+    return docs
 
 
-def _plain_text(text: str) -> str:
+def plain_text(text: str) -> str:
     """Docstring markup as a terminal shows it: ``:class:`~a.b.C``` becomes ``C``, a doubled backtick a quote."""
     text = re.sub(r":\w+:`~[\w.]*?(\w+)`", r"\1", text)
     text = re.sub(r":\w+:`([^`]+)`", r"\1", text)
@@ -111,7 +114,7 @@ def add_dataclass_arguments(
             kind = next(a for a in args if a is not type(None))
             args = typing.get_args(kind)
         origin = typing.get_origin(kind)
-        help_text = f"{docs.get(f.name, '')} (default: {default})".replace("%", "%%")
+        help_text = f"{plain_text(docs.get(f.name, ''))} (default: {default})".replace("%", "%%")
         flag = "--" + f.name.replace("_", "-")
         if origin is tuple:
             group.add_argument(flag, nargs="+", type=_scalar(args[0]), default=None, help=help_text, dest=f.name)

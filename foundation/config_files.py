@@ -137,9 +137,9 @@ def with_settings(config: T, changes: Mapping[str, Any]) -> T:
     inner: dict[str, dict[str, Any]] = {}
     for key, value in changes.items():
         name = key.split(".")[-1]
-        block = homes.get(name, "?")
-        if block == "?" or ("." in key and key.split(".")[0] != block):
+        if name not in homes or ("." in key and key.split(".")[0] != homes[name]):
             raise ConfigFileError(f"{cls.__name__} has no setting {key!r} (settings: {', '.join(sorted(homes))})")
+        block = homes[name]
         if block is None:
             top[name] = value
         else:

@@ -59,6 +59,7 @@ def test_a_missing_short_or_altered_part_is_named_and_nothing_is_written(parts, 
     ):
         parts.join(staged / "manifest.json", tmp_path / "joined")
     assert not (tmp_path / "joined").exists() and not (tmp_path / "joined.partial").exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["site.tar.xz", "staged"]  # no temporary left either
 
 
 def test_the_command_line_reports_a_bad_manifest_with_exit_status_1(parts, payload, tmp_path, capsys):

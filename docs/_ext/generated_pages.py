@@ -101,21 +101,10 @@ def cli_page() -> str:
 
 
 def attribute_docs(cls: type) -> dict[str, str]:
-    """``{field: meaning}`` from the Google-style ``Attributes:`` section of ``cls``'s docstring."""
-    doc = inspect.getdoc(cls) or ""
-    match = re.search(r"^Attributes:\n((?:[ \t]+.*\n?|\n)*)", doc, flags=re.M)
-    if not match:
-        return {}
-    meanings: dict[str, str] = {}
-    current = None
-    for line in match.group(1).splitlines():
-        item = re.match(r"^ {4}(\w+)(?: \([^)]*\))?: ?(.*)$", line)
-        if item:
-            current = item.group(1)
-            meanings[current] = item.group(2).strip()
-        elif current and line.strip():
-            meanings[current] += " " + line.strip()
-    return meanings
+    """``{field: meaning}`` from the ``Attributes:`` section of ``cls``'s docstring (the command line's reading)."""
+    from foundation.config_cli import field_docs
+
+    return field_docs(cls)
 
 
 def _default(field: dataclasses.Field) -> str:
@@ -141,7 +130,8 @@ def _block_default(block: Any) -> str:
     from foundation.config_files import config_to_dict
 
     cls = type(block)
-    changed = {k: v for k, v in config_to_dict(block).items() if v != config_to_dict(cls()).get(k)}
+    defaults = config_to_dict(cls())
+    changed = {k: v for k, v in config_to_dict(block).items() if v != defaults[k]}
     if not changed:
         return f"the [`{cls.__name__}`](#{cls.__name__.lower()}) defaults"
     listed = ", ".join(f"`{k}={v}`" for k, v in changed.items())

@@ -13,7 +13,8 @@ Usage::
     python tools/device/parts.py join --manifest DIR/manifest.json --out FILE [--parts DIR ...]
     python tools/device/parts.py check --manifest DIR/manifest.json [--parts DIR ...]
 
-Standard library only: the device machine runs it before anything is installed.
+It needs only the standard library and the repository's ``foundation`` (itself standard library only):
+the device machine runs it before anything is installed.
 """
 
 from __future__ import annotations
@@ -21,9 +22,13 @@ from __future__ import annotations
 import argparse
 import hashlib
 import json
-import os
 import sys
 from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository, for foundation (run as a script)
+
+from foundation.atomic import atomic_path
+from foundation.fingerprints import file_sha256
 
 MANIFEST = "manifest.json"
 FORMAT = "mocap_hierarchy.device_parts"
@@ -33,14 +38,6 @@ CHUNK = 1 << 20
 
 class PartsError(ValueError):
     """A part is missing, cut short or altered, or the manifest is not one of this tool's."""
-
-
-def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
-    with path.open("rb") as handle:
-        while block := handle.read(CHUNK):
-            digest.update(block)
-    return digest.hexdigest()
 
 
 def split(source: Path, out: Path, part_size: int) -> dict:
@@ -58,7 +55,8 @@ def split(source: Path, out: Path, part_size: int) -> dict:
                 break
             whole.update(data)
             name = f"part-{index:03d}"
-            _write_atomically(out / name, data)
+            with atomic_path(out / name) as temporary:
+                temporary.write_bytes(data)
             parts.append({"name": name, "size": len(data), "sha256": hashlib.sha256(data).hexdigest()})
             index += 1
             if len(data) < part_size:
@@ -71,7 +69,8 @@ def split(source: Path, out: Path, part_size: int) -> dict:
         "sha256": whole.hexdigest(),
         "parts": parts,
     }
-    _write_atomically(out / MANIFEST, (json.dumps(manifest, indent=1) + "\n").encode())
+    with atomic_path(out / MANIFEST) as temporary:
+        temporary.write_text(json.dumps(manifest, indent=1) + "\n")
     return manifest
 
 
@@ -106,7 +105,7 @@ def locate(manifest: dict, folders: list[Path]) -> list[Path]:
             continue
         if path.stat().st_size != part["size"]:
             problems.append(f"{part['name']}: {path.stat().st_size} bytes, the manifest says {part['size']}")
-        elif _sha256(path) != part["sha256"]:
+        elif file_sha256(path) != part["sha256"]:
             problems.append(f"{part['name']}: SHA-256 differs from the manifest's")
         found.append(path)
     if problems:
@@ -127,25 +126,17 @@ def join(manifest_path: Path, out: Path, folders: list[Path] | None = None) -> P
     """
     manifest = read_manifest(manifest_path)
     paths = locate(manifest, folders or [manifest_path.parent])
-    temporary = out.with_name(out.name + ".partial")
     whole = hashlib.sha256()
-    with temporary.open("wb") as target:
-        for path in paths:
-            with path.open("rb") as handle:
-                while block := handle.read(CHUNK):
-                    whole.update(block)
-                    target.write(block)
-    if temporary.stat().st_size != manifest["size"] or whole.hexdigest() != manifest["sha256"]:
-        temporary.unlink()
-        raise PartsError(f"the joined {manifest['file']} differs from the manifest's size or SHA-256")
-    os.replace(temporary, out)
+    with atomic_path(out) as temporary:  # removed, and nothing left under ``out``, if a check fails
+        with temporary.open("wb") as target:
+            for path in paths:
+                with path.open("rb") as handle:
+                    while block := handle.read(CHUNK):
+                        whole.update(block)
+                        target.write(block)
+        if temporary.stat().st_size != manifest["size"] or whole.hexdigest() != manifest["sha256"]:
+            raise PartsError(f"the joined {manifest['file']} differs from the manifest's size or SHA-256")
     return out
-
-
-def _write_atomically(path: Path, data: bytes) -> None:
-    temporary = path.with_name(path.name + ".partial")
-    temporary.write_bytes(data)
-    os.replace(temporary, path)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -34,6 +34,10 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository, for foundation (run as a script)
+
+from foundation.atomic import write_text
+
 REPO = Path(__file__).resolve().parents[2]
 SITE, WARP_CACHE = Path("/tmp/mh-site"), Path("/tmp/mh-warp-cache")
 SHARES = {"parity": 0.12, "speed": 0.25, "ppo": 0.13, "expert": 0.5}
@@ -60,10 +64,8 @@ SIZES = {
 
 
 def write_json(path: Path, value) -> None:
-    """Writes ``value`` as JSON at once (a reader never sees half a file)."""
-    temporary = path.with_name(f".{path.name}.tmp")
-    temporary.write_text(json.dumps(value, indent=2, default=str) + "\n")
-    os.replace(temporary, path)
+    """Writes ``value`` as JSON at once (a reader never sees half a file); what JSON lacks becomes text."""
+    write_text(path, json.dumps(value, indent=2, default=str) + "\n")
 
 
 def read_json(path: Path):
