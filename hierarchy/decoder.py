@@ -107,6 +107,34 @@ class DecoderSpec:
         """Length of the flat observation vector."""
         return sum(self.observation_sizes.values())
 
+    def interface(self) -> dict[str, Any]:
+        """The decoder's inputs and outputs as plain data: names, shapes, key order with offsets, bounds.
+
+        One description for every place that states them (the ONNX graph's metadata, the model card):
+        ``{"inputs": [...], "outputs": [...]}``, each entry with ``name``, ``shape`` (``"batch"`` first)
+        and ``dtype``; the observation lists its ``keys`` (``key``, ``size``, ``offset`` in the flat
+        vector), the latent its ``bound``, the action its ``low`` and ``high``.
+        """
+        keys, offset = [], 0
+        for key, size in self.observation_sizes.items():
+            keys.append({"key": key, "size": size, "offset": offset})
+            offset += size
+        return {
+            "inputs": [
+                {"name": "observation", "shape": ["batch", self.observation_size], "dtype": "float32", "keys": keys},
+                {"name": "latent", "shape": ["batch", self.latent_size], "dtype": "float32", "bound": self.latent_bound},
+            ],
+            "outputs": [
+                {
+                    "name": "action",
+                    "shape": ["batch", self.action_size],
+                    "dtype": "float32",
+                    "low": self.action_low,
+                    "high": self.action_high,
+                }
+            ],
+        }
+
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict with format marker and schema version."""
         return {"format": DECODER_FORMAT, "schema_version": DECODER_SCHEMA_VERSION, **asdict(self)}
