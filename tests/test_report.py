@@ -237,3 +237,32 @@ def test_report_draws_only_what_is_there(tmp_path):
     report = build_report(tmp_path, tmp_path / "out")
     assert sorted(p.name for p in report.figures) == ["expert_curves.png", "expert_vs_length.png"]
     assert report.sections == ["Expert training curves", "Expert performance against snippet length"]
+
+
+def test_tracking_metrics_of_evaluations_get_a_table_with_their_mean(run):
+    tracking = {
+        "success": 0.5,
+        "global_position_error_mm": 41.25,
+        "local_position_error_mm": 30.0,
+        "velocity_error_mm": 5.0,
+        "acceleration_error_mm": 2.0,
+    }
+    results = [
+        {"snippet": "SYN_a-0-100", "normalized_reward": 0.4, "normalized_length": 0.7, "tracking": tracking},
+        {
+            "snippet": "SYN_b-0-200",
+            "normalized_reward": 0.2,
+            "normalized_length": 0.5,
+            "tracking": {**tracking, "success": 1.0},
+        },
+    ]
+    (run / "experts" / "with_tracking.json").write_text(
+        json.dumps({"config": {"action_noise": 0.1, "init": "random"}, "results": results})
+    )
+    report = build_report(run)
+    assert "Tracking metrics" in report.sections
+    page = report.page.read_text()
+    assert "<td>41.2</td>" in page and "<td>0.750</td>" in page  # the mean success over the two snippets
+    assert page.count("<td>experts/with_tracking.json</td>") == 3  # two snippets and their mean
+    (run / "experts" / "with_tracking.json").unlink()
+    assert "Tracking metrics" not in build_report(run).sections  # files from before the metrics: no section

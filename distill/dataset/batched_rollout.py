@@ -58,6 +58,7 @@ def rollout_snippet_batched(
         done = ends.done.cpu().numpy()
         scores = ends.normalized_episode_reward.cpu().numpy()
         lengths = ends.normalized_episode_length.cpu().numpy()
+        tracking = {name: value.cpu().numpy() for name, value in ends.tracking.items()}
         stepped = _flat(ends.final_observations if done.any() else observations, keys)  # type: ignore[arg-type]
         fresh = _flat(observations, keys) if done.any() else stepped
         for world in np.flatnonzero(active):
@@ -71,7 +72,10 @@ def rollout_snippet_batched(
             )
             if not done[world]:
                 continue
-            finished.append(recorders[world].finish(policy, bool(terminated[world]), scores[world], lengths[world]))
+            measured = {name: float(values[world]) for name, values in tracking.items()}
+            finished.append(
+                recorders[world].finish(policy, bool(terminated[world]), scores[world], lengths[world], measured)
+            )
             if started < episodes:
                 started += 1
                 recorders[world] = EpisodeRecorder(fresh[world])

@@ -7,6 +7,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -86,6 +87,7 @@ class Episode:
         terminated: The episode ended by failing (not by reaching the end).
         normalized_return: MoCapAct's normalised episode reward.
         normalized_length: MoCapAct's normalised episode length.
+        tracking: The tracking metrics of :mod:`tasks.tracking.metrics` (empty when not measured).
     """
 
     observations: np.ndarray
@@ -98,6 +100,7 @@ class Episode:
     terminated: bool
     normalized_return: float
     normalized_length: float
+    tracking: dict[str, float] = field(default_factory=dict)
 
 
 def gae(rewards: np.ndarray, values: np.ndarray, gamma: float, lam: float) -> np.ndarray:
@@ -150,9 +153,22 @@ class EpisodeRecorder:
         self.observations.append(np.asarray(observation, dtype=np.float32))
 
     def finish(
-        self, policy: RolloutPolicy, terminated: bool, normalized_return: float, normalized_length: float
+        self,
+        policy: RolloutPolicy,
+        terminated: bool,
+        normalized_return: float,
+        normalized_length: float,
+        tracking: Mapping[str, float] | None = None,
     ) -> Episode:
-        """The finished episode, advantages computed with the expert's discount and GAE parameter."""
+        """The finished episode, advantages computed with the expert's discount and GAE parameter.
+
+        Args:
+            policy: The expert that acted (its discount and GAE parameter).
+            terminated: The episode ended by failing.
+            normalized_return: MoCapAct's normalised episode reward.
+            normalized_length: MoCapAct's normalised episode length.
+            tracking: The episode's tracking metrics (:data:`tasks.tracking.metrics.TRACKING_METRICS`).
+        """
         rewards = np.asarray(self.rewards, dtype=np.float64)
         values = np.asarray(self.values, dtype=np.float64)
         return Episode(
@@ -166,4 +182,5 @@ class EpisodeRecorder:
             terminated=bool(terminated),
             normalized_return=float(normalized_return),
             normalized_length=float(normalized_length),
+            tracking={name: float(value) for name, value in (tracking or {}).items()},
         )

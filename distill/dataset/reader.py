@@ -17,6 +17,7 @@ import numpy as np
 
 from distill.dataset import schema
 from tasks.clips.snippets import parse_snippet_id
+from tasks.tracking.metrics import episode_means
 
 
 @dataclass(frozen=True)
@@ -216,6 +217,9 @@ class RolloutDataset:
     def expert_metrics(self, init: str = "random") -> dict[str, dict[str, float]]:
         """The experts' mean normalised reward and length per snippet, as recorded in the files.
 
+        Files this library wrote also hold the tracking metrics of :mod:`tasks.tracking.metrics`
+        (their means are added; MoCapAct's files and ours from before have none).
+
         Args:
             init: ``random`` (the RSI episodes) or ``start`` (episodes from the snippet start).
         """
@@ -231,6 +235,13 @@ class RolloutDataset:
                     "normalized_reward": read(schema.NORM_EPISODE_RETURNS),
                     "normalized_length": read(schema.NORM_EPISODE_LENGTHS),
                 }
+                metrics = schema.group_at(f, f"{snippet}/{group}", where)
+                recorded = {
+                    name: schema.dataset_at(metrics, name, where)[...].tolist()
+                    for name in schema.TRACKING_METRIC_NAMES
+                    if name in metrics
+                }
+                out[snippet].update(episode_means(recorded) if recorded else {})
         return out
 
     def statistics(self, actions_per_row: bool = False) -> Statistics:

@@ -40,6 +40,8 @@ from dataclasses import dataclass
 import h5py
 import numpy as np
 
+from tasks.tracking.metrics import TRACKING_METRICS
+
 SCHEMA_ATTRIBUTE = "mocap_hierarchy_rollouts"
 SCHEMA_VERSION = 2
 READABLE_VERSIONS = (0, 1, 2)
@@ -62,6 +64,9 @@ EPISODE_LENGTHS = "episode_lengths"
 NORM_EPISODE_RETURNS = "norm_episode_returns"
 NORM_EPISODE_LENGTHS = "norm_episode_lengths"
 METRIC_NAMES = (EPISODE_RETURNS, EPISODE_LENGTHS, NORM_EPISODE_RETURNS, NORM_EPISODE_LENGTHS)
+TRACKING_METRIC_NAMES = TRACKING_METRICS
+"""Per-episode datasets of our files only, beside :data:`METRIC_NAMES` in the metrics groups: the tracking
+metrics of :mod:`tasks.tracking.metrics` (``success`` 1.0 or 0.0, errors in millimetres)."""
 OBSERVATIONS = "observations/proprioceptive"
 ACTIONS = "actions"
 MEAN_ACTIONS = "mean_actions"

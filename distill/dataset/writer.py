@@ -96,7 +96,11 @@ def rollout_snippet(
             if step.done:
                 info = step.info
                 episode = recorder.finish(
-                    policy, step.terminated, info["normalized_episode_reward"], info["normalized_episode_length"]
+                    policy,
+                    step.terminated,
+                    info["normalized_episode_reward"],
+                    info["normalized_episode_length"],
+                    {name: info[name] for name in schema.TRACKING_METRIC_NAMES},
                 )
                 finished[step.env].append(episode)
                 if step.next_observation is not None:
@@ -182,6 +186,8 @@ def write_rollout_file(
                 metrics[schema.EPISODE_LENGTHS] = np.array([len(e.actions) for e in part], dtype=np.int64)
                 metrics[schema.NORM_EPISODE_RETURNS] = np.array([e.normalized_return for e in part], dtype=np.float64)
                 metrics[schema.NORM_EPISODE_LENGTHS] = np.array([e.normalized_length for e in part], dtype=np.float64)
+                for metric in schema.TRACKING_METRIC_NAMES:
+                    metrics[metric] = np.array([e.tracking.get(metric, np.nan) for e in part], dtype=np.float64)
         stats = f.create_group(schema.STATS)
         for name, total, squares in (
             ("proprio", sums["obs"], sums["obs2"]),

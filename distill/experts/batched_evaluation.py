@@ -21,8 +21,7 @@ from distill.experts.config import EvaluationConfig
 from distill.experts.evaluation import EvaluationResult, evaluation_task
 from distill.experts.policy import ExpertPolicy
 from tasks.tracking.batched import BatchedTrackingEnv
-
-METRICS = ("normalized_reward", "normalized_length", "return", "length")
+from tasks.tracking.metrics import EPISODE_METRICS
 
 
 def evaluate_policies_batched(
@@ -59,7 +58,7 @@ def evaluate_policies_batched(
     observations = env.reset()
     started = np.full(len(snippets), per)
     active = np.ones(env.num_worlds, dtype=bool)
-    metrics: dict[str, dict[str, list[float]]] = {s: {k: [] for k in METRICS} for s in snippets}
+    metrics: dict[str, dict[str, list[float]]] = {s: {k: [] for k in EPISODE_METRICS} for s in snippets}
     actions = torch.zeros(env.num_worlds, env.action_size, device=env.device)
     while active.any():
         host = {k: v.double().cpu().numpy() for k, v in observations.items()}
@@ -76,10 +75,11 @@ def evaluate_policies_batched(
             "normalized_length": ends.normalized_episode_length.cpu().numpy(),
             "return": ends.episode_return.cpu().numpy(),
             "length": ends.episode_length.cpu().numpy(),
+            **{name: value.cpu().numpy() for name, value in ends.tracking.items()},
         }
         for world in np.flatnonzero(done):
             index = world // per
-            for name in METRICS:
+            for name in EPISODE_METRICS:
                 metrics[snippets[index]][name].append(float(values[name][world]))
             if started[index] < config.episodes:
                 started[index] += 1

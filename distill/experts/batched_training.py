@@ -222,6 +222,7 @@ def _keep_evaluation(learner: Learner, result, policy: ExpertPolicy, config, pro
         "normalized_length": result.normalized_length,
         "episode_return": result.episode_return,
         "episode_length": result.episode_length,
+        "tracking": result.tracking,
         "seconds": round(time.monotonic() - started, 1),
     }
     sums = learner.episode_sums

@@ -278,6 +278,9 @@ class EvaluationConfig:
         min_steps: Random starts exclude the last ``min_steps + 1`` frames (30).
         action_noise: Gaussian noise added to the mean action (0 gives a deterministic policy).
         termination_threshold: Tracking error that ends an episode (the expert's training value).
+        termination: What ends an episode early, and so decides success: ``error`` (MoCapAct's:
+            the tracking error above ``termination_threshold``) or ``distance`` (PHC's: the tracked
+            bodies' mean distance from the reference above 0.5 m).
         n_envs: Environments stepped in lockstep.
         seed: Seed of starts and noise.
     """
@@ -287,6 +290,7 @@ class EvaluationConfig:
     min_steps: int = 29
     action_noise: float = 0.1
     termination_threshold: float = 0.3
+    termination: str = "error"
     n_envs: int = 16
     seed: int = 0
 

@@ -1,4 +1,7 @@
-"""Evaluating snippet experts: MoCapAct's normalised episode reward and length.
+"""Evaluating snippet experts: MoCapAct's normalised episode reward and length, and tracking metrics.
+
+The tracking metrics (success rate, position, velocity and acceleration errors in millimetres) are
+defined in :mod:`tasks.tracking.metrics` and come from the same episodes.
 
 Episodes run in several tracking environments in lockstep (see
 :mod:`foundation.lockstep`) with one batched policy call per step.
@@ -21,6 +24,7 @@ from distill.experts.policy import ExpertPolicy
 from foundation.lockstep import Lockstep
 from tasks.observable_sets import OBSERVABLE_SETS
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
+from tasks.tracking.metrics import EPISODE_METRICS, episode_means, record_episode
 from tasks.walker import WalkerModel, build_walker
 
 
@@ -34,7 +38,9 @@ class EvaluationResult:
         normalized_length: Mean normalised episode length.
         episode_return: Mean undiscounted return.
         episode_length: Mean episode length (steps).
-        per_episode: Lists of the four metrics per episode.
+        tracking: The tracking metrics' means over episodes (``success``: the success rate); see
+            :mod:`tasks.tracking.metrics`.
+        per_episode: Lists of every metric per episode (:data:`tasks.tracking.metrics.EPISODE_METRICS`).
         config: The evaluation settings.
     """
 
@@ -43,6 +49,7 @@ class EvaluationResult:
     normalized_length: float
     episode_return: float
     episode_length: float
+    tracking: dict[str, float]
     per_episode: dict[str, list[float]]
     config: dict
 
@@ -62,15 +69,24 @@ class EvaluationResult:
             return float("nan")
         return float(values.std(ddof=1) / np.sqrt(values.size))
 
+    def summary(self) -> dict[str, float]:
+        """Normalised reward and length with the tracking metrics' means, one flat dict."""
+        return {
+            "normalized_reward": self.normalized_reward,
+            "normalized_length": self.normalized_length,
+            **self.tracking,
+        }
+
     @classmethod
     def from_episodes(cls, snippet: str, per_episode: dict[str, list[float]], config: dict) -> EvaluationResult:
-        """The means of per-episode ``normalized_reward``, ``normalized_length``, ``return`` and ``length``."""
+        """The means of the per-episode metrics (:data:`tasks.tracking.metrics.EPISODE_METRICS`)."""
         return cls(
             snippet=snippet,
             normalized_reward=float(np.mean(per_episode["normalized_reward"])),
             normalized_length=float(np.mean(per_episode["normalized_length"])),
             episode_return=float(np.mean(per_episode["return"])),
             episode_length=float(np.mean(per_episode["length"])),
+            tracking=episode_means(per_episode),
             per_episode=per_episode,
             config=config,
         )
@@ -122,6 +138,7 @@ def evaluation_task(
         min_steps=config.min_steps,
         action_noise=config.action_noise,
         termination_threshold=config.termination_threshold,
+        termination=config.termination,
         residual_actions=policy.spec.residual_actions,
     )
 
@@ -151,15 +168,12 @@ def evaluate_policy(
     n_envs = min(config.n_envs, config.episodes)
     envs = [ClipTrackingEnv(tracking, walker=walker) for _ in range(n_envs)]
     lockstep = Lockstep(envs, config.episodes, [config.seed * 100_003 + i for i in range(n_envs)])
-    metrics: dict[str, list[float]] = {k: [] for k in ("normalized_reward", "normalized_length", "return", "length")}
+    metrics: dict[str, list[float]] = {name: [] for name in EPISODE_METRICS}
     bar = tqdm(total=config.episodes, desc=f"evaluating {snippet}", unit="ep", disable=not progress)
     while lockstep.active:
         for step in lockstep.step(policy.mean_actions(lockstep.batch(policy.keys))):
             if step.done:
-                metrics["normalized_reward"].append(step.info["normalized_episode_reward"])
-                metrics["normalized_length"].append(step.info["normalized_episode_length"])
-                metrics["return"].append(step.info["episode_return"])
-                metrics["length"].append(step.info["episode_length"])
+                record_episode(metrics, step.info)
                 bar.update()
     bar.close()
     return EvaluationResult.from_episodes(snippet, metrics, asdict(config))

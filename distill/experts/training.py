@@ -195,6 +195,7 @@ class ExpertRun:
             "normalized_length": evaluation.normalized_length,
             "episode_return": evaluation.episode_return,
             "episode_length": evaluation.episode_length,
+            "tracking": evaluation.tracking,
         }
 
     def save_checkpoint(self, model: PPO) -> None:

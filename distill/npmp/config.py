@@ -22,6 +22,9 @@ class PolicyEvaluationConfig:
         episodes: Episodes per snippet (or clip).
         init: ``random`` (reference-state initialisation) or ``start``.
         min_steps: Random starts exclude the last ``min_steps + 1`` frames (the paper's 30).
+        termination: What ends an episode early, and so decides success: ``error`` (MoCapAct's
+            tracking error above 0.3) or ``distance`` (PHC's: the tracked bodies' mean distance
+            from the reference above 0.5 m).
         n_envs: Environments stepped in lockstep per snippet.
         seed: Seed of the starts.
     """
@@ -29,6 +32,7 @@ class PolicyEvaluationConfig:
     episodes: int = 100
     init: str = "random"
     min_steps: int = 29
+    termination: str = "error"
     n_envs: int = 8
     seed: int = 0
 

@@ -3,9 +3,11 @@
 The policy tracks each snippet (or clip) in the tracking environment with the
 reference look-ahead it was trained with; its latent is the encoder's mean
 (deterministic), starting from zero at every episode. Metrics are MoCapAct's
-normalised episode reward and length; each snippet's figures are divided by
-the experts' on the same snippet with the same initialisation, as stored in
-the rollout dataset (``start_metrics`` / ``rsi_metrics``).
+normalised episode reward and length, divided by the experts' on the same
+snippet with the same initialisation as stored in the rollout dataset
+(``start_metrics`` / ``rsi_metrics``), and the tracking metrics of
+:mod:`tasks.tracking.metrics` (success rate, position, velocity and
+acceleration errors in millimetres) from the same episodes.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from distill.npmp.config import PolicyEvaluationConfig  # defined there (light),
 from distill.npmp.model import MultiClipPrompt, NpmpPolicy
 from foundation.lockstep import Lockstep
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
+from tasks.tracking.metrics import episode_means, record_episode
 from tasks.walker import build_walker
 
 
@@ -27,10 +30,11 @@ def evaluate_multi_clip(
     clips: str | None = None,
     progress: bool = False,
 ) -> dict[str, dict[str, float]]:
-    """Normalised reward and length of the policy per snippet (or clip id).
+    """Normalised reward and length, and the tracking metrics, of the policy per snippet (or clip id).
 
     Returns:
-        ``{snippet: {"normalized_reward", "normalized_length", "episodes"}}``.
+        ``{snippet: {"normalized_reward", "normalized_length", "episodes", *TRACKING_METRICS}}`` (means
+        over the snippet's episodes; ``success`` is the success rate).
     """
     walker = build_walker()
     keys = policy.spec.observation_keys
@@ -43,23 +47,24 @@ def evaluate_multi_clip(
             observables=keys,
             init=config.init,
             min_steps=config.min_steps,
+            termination=config.termination,
         )
         n_envs = min(config.n_envs, config.episodes)
         envs = [ClipTrackingEnv(tracking, walker=walker) for _ in range(n_envs)]
         lockstep = Lockstep(envs, config.episodes, [config.seed * 100_003 + i for i in range(n_envs)])
         driver = MultiClipPrompt(policy, n_envs)
-        rewards, lengths = [], []
+        metrics: dict[str, list[float]] = {}
         while lockstep.active:
             actions = driver.act(lockstep.batch(keys), envs, list(lockstep.active))
             for transition in lockstep.step(actions):
                 if transition.done:
-                    rewards.append(transition.info["normalized_episode_reward"])
-                    lengths.append(transition.info["normalized_episode_length"])
+                    record_episode(metrics, transition.info)
                     driver.reset(transition.env)
         results[snippet] = {
-            "normalized_reward": float(np.mean(rewards)),
-            "normalized_length": float(np.mean(lengths)),
-            "episodes": len(rewards),
+            "normalized_reward": float(np.mean(metrics["normalized_reward"])),
+            "normalized_length": float(np.mean(metrics["normalized_length"])),
+            "episodes": len(metrics["normalized_reward"]),
+            **episode_means(metrics),
         }
     return results
 

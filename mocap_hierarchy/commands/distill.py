@@ -73,6 +73,7 @@ def _distill_eval(args: argparse.Namespace) -> None:
     from distill.npmp.evaluation import evaluate_multi_clip, fraction_of_experts
     from distill.npmp.model import load_policy
     from distill.npmp.training import POLICY_FILE
+    from tasks.tracking.metrics import TABLE_COLUMNS, TERMINATION_NAMES, aggregate, metrics_table
 
     config = dataclass_from_args(PolicyEvaluationConfig, args)
     path = file_in_folder(args.policy, POLICY_FILE)
@@ -85,13 +86,20 @@ def _distill_eval(args: argparse.Namespace) -> None:
     if not snippets:
         raise ValueError("name --snippets (snippet or clip ids) or give --data to evaluate the dataset's snippets")
     results = evaluate_multi_clip(policy, snippets, config, clips=args.clips, progress=True)
-    print(f"{'snippet':<28}{'norm. reward':>14}{'norm. length':>14}{'expert reward':>15}{'expert length':>15}")
-    for snippet, row in results.items():
-        expert = experts.get(snippet, {})
-        reward, length = expert.get("normalized_reward", float("nan")), expert.get("normalized_length", float("nan"))
-        print(
-            f"{snippet:<28}{row['normalized_reward']:>14.3f}{row['normalized_length']:>14.3f}{reward:>15.3f}{length:>15.3f}"
-        )
+    print(
+        f"{config.episodes} episodes per snippet from {config.init} frames; success: reaching the snippet's end "
+        f"without termination by {TERMINATION_NAMES[config.termination]}"
+    )
+    columns = {**TABLE_COLUMNS, "expert_reward": "expert reward", "expert_length": "expert length"}
+    rows = {
+        snippet: {
+            **row,
+            "expert_reward": experts.get(snippet, {}).get("normalized_reward", float("nan")),
+            "expert_length": experts.get(snippet, {}).get("normalized_length", float("nan")),
+        }
+        for snippet, row in results.items()
+    }
+    print(metrics_table(rows, columns))
     summary = fraction_of_experts(results, experts)
     print(
         f"fraction of the experts over {summary['snippets']} snippets: reward {summary['normalized_reward']:.3f}, "
@@ -102,5 +110,11 @@ def _distill_eval(args: argparse.Namespace) -> None:
 
         write_json(
             args.json,
-            {"config": dataclasses.asdict(config), "policy": results, "experts": experts, "fraction": summary},
+            {
+                "config": dataclasses.asdict(config),
+                "policy": results,
+                "over_snippets": aggregate(results),
+                "experts": experts,
+                "fraction": summary,
+            },
         )

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, MODE_LABELS
 from mocap_hierarchy.quickstart.records import job_runs
 from mocap_hierarchy.quickstart.verdicts import reward_per_step
+from tasks.tracking.metrics import TRACKING_METRICS, format_metrics
 
 
 def print_summary(summary: dict) -> None:
@@ -12,7 +15,8 @@ def print_summary(summary: dict) -> None:
     verdicts = summary["verdicts"]
     playback = {row["snippet"]: row for row in summary["playback"]}
     print(
-        f"\n{'snippet':<26}{'playback reward':>16}{'length':>8}{'expert reward':>15}{'length':>8}  expert vs playback"
+        f"\n{'snippet':<26}{'playback reward':>16}{'length':>8}{'G-MPJPE':>9}{'expert reward':>15}{'length':>8}"
+        f"{'G-MPJPE':>9}  expert vs playback"
     )
     for row in summary["experts"]:
         base = playback.get(row["snippet"], {})
@@ -20,9 +24,13 @@ def print_summary(summary: dict) -> None:
         expert_length = f"{row['normalized_length']:.3f}" if "normalized_length" in row else ""
         print(
             f"{row['snippet']:<26}{base.get('normalized_reward', float('nan')):>16.3f}"
-            f"{base.get('normalized_length', float('nan')):>8.3f}{expert_reward:>15}{expert_length:>8}  "
-            f"{verdicts['experts'][row['snippet']]['verdict']}"
+            f"{base.get('normalized_length', float('nan')):>8.3f}{_millimetres(base):>9}{expert_reward:>15}"
+            f"{expert_length:>8}{_millimetres(row):>9}  {verdicts['experts'][row['snippet']]['verdict']}"
         )
+    print(
+        "(G-MPJPE: the tracked bodies' mean distance from the reference over the episode; each episode ends at "
+        "MoCapAct's tracking error 0.3)"
+    )
     dataset = summary["dataset"]
     print(
         f"\nrollout dataset: {dataset['files']} files, {dataset['episodes']} episodes, {dataset['steps']} steps "
@@ -34,6 +42,10 @@ def print_summary(summary: dict) -> None:
         f"experts' normalised reward, {fraction['normalized_length']:.3f} of their length ({fraction['snippets']} "
         "snippets, deterministic, from the start)"
     )
+    tracked = summary["distill"].get("multi_clip", {}).values()
+    if tracked and all("success" in row for row in tracked):
+        means = {name: float(np.nanmean([row[name] for row in tracked])) for name in TRACKING_METRICS}
+        print(f"  tracking, mean over its snippets: {format_metrics(means)}")
     runs = summary["transfer"]
     first = next(iter(runs.values()))
     print(
@@ -96,6 +108,11 @@ def print_summary(summary: dict) -> None:
     print(f"plots: {', '.join(summary['plots'])}")
     print(f"tracking environment: {summary['env_steps_per_second']:.0f} env steps/s (one process)")
     print(_time_line(summary))
+
+
+def _millimetres(row: dict) -> str:
+    value = row.get("global_position_error_mm")
+    return "-" if value is None else f"{value:.0f} mm"
 
 
 def _time_line(summary: dict) -> str:

@@ -18,6 +18,7 @@ from tqdm.auto import tqdm
 from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, EVALUATION_EPISODES, MODE_LABELS, QuickstartConfig
 from mocap_hierarchy.quickstart.progress import training_returns
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig, reference_action
+from tasks.tracking.metrics import episode_means, record_episode
 from tasks.walker import build_walker
 
 
@@ -28,7 +29,7 @@ def playback_stage(snippets: list[str], library: str, config: QuickstartConfig) 
     rows, steps, seconds = [], 0, 0.0
     for snippet in tqdm(snippets, desc="playback per snippet", unit="snippet"):
         env = ClipTrackingEnv(TrackingConfig(snippets=(snippet,), clips=library, init="start"), walker=walker)
-        rewards, lengths = [], []
+        metrics: dict[str, list[float]] = {}
         for episode in range(episodes):
             env.reset(seed=config.seed + episode)
             began = time.perf_counter()
@@ -38,13 +39,13 @@ def playback_stage(snippets: list[str], library: str, config: QuickstartConfig) 
                 if terminated or truncated:
                     break
             seconds += time.perf_counter() - began
-            rewards.append(info["normalized_episode_reward"])
-            lengths.append(info["normalized_episode_length"])
+            record_episode(metrics, info)
         rows.append(
             {
                 "snippet": snippet,
-                "normalized_reward": float(np.mean(rewards)),
-                "normalized_length": float(np.mean(lengths)),
+                "normalized_reward": float(np.mean(metrics["normalized_reward"])),
+                "normalized_length": float(np.mean(metrics["normalized_length"])),
+                **episode_means(metrics),
             }
         )
     return {"rows": rows, "env_steps_per_second": steps / seconds if seconds else 0.0}
@@ -92,8 +93,7 @@ def experts_stage(folder: Path, library: str, config: QuickstartConfig) -> list[
             {
                 "snippet": report.name,
                 "status": "ok",  # trained now or by an earlier run: the same expert
-                "normalized_reward": result.normalized_reward,
-                "normalized_length": result.normalized_length,
+                **result.summary(),
             }
         )
     return rows

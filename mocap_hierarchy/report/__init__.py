@@ -13,12 +13,18 @@ from __future__ import annotations
 
 import math
 import shlex
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from foundation.atomic import write_text
+
+if TYPE_CHECKING:
+    from mocap_hierarchy.report.page import Section
+    from mocap_hierarchy.report.sources import RunContents
 
 
 @dataclass(frozen=True)
@@ -36,8 +42,48 @@ class Report:
     sections: list[str]
 
 
-def _fmt(value: float) -> str:
+def _fmt(value: float | None) -> str:
     return "-" if value is None or (isinstance(value, float) and math.isnan(value)) else f"{value:.3f}"
+
+
+def _tracking_section(contents: RunContents, rel: Callable[[Path], str]) -> Section | None:
+    """The tracking metrics of every evaluation that has them: one row per file and snippet, then the mean."""
+    from mocap_hierarchy.report.page import Section
+    from tasks.tracking.metrics import METRIC_LABELS, TRACKING_METRICS
+
+    sources = [(f"experts, noise {e.action_noise:g}, {e.init}", e.path, e.tracking) for e in contents.evaluations]
+    sources += [("multi-clip policy", m.path, m.tracking) for m in contents.multi_clip]
+    rows, files = [], []
+    for label, path, tracking in sources:
+        if not tracking:
+            continue
+        files.append(rel(path))
+        table = {snippet: tracking[snippet] for snippet in sorted(tracking)}
+        if len(table) > 1:
+            table["mean over snippets"] = {
+                name: float(np.nanmean([row.get(name, math.nan) for row in tracking.values()]))
+                for name in TRACKING_METRICS
+            }
+        for snippet, values in table.items():
+            cells = [_fmt(values.get("success"))]
+            cells += [_millimetres(values.get(name)) for name in TRACKING_METRICS[1:]]
+            rows.append([label, rel(path), snippet, *cells])
+    if not rows:
+        return None
+    return Section(
+        "Tracking metrics",
+        None,
+        "From the same episodes as the normalised scores (docs: the tracking metrics). Success: the episode "
+        "reaches the end of its snippet without termination (the evaluation's: MoCapAct's tracking error by "
+        "default); errors over the tracked bodies, per control step of 0.03 s.",
+        ["evaluation", "file", "snippet", *(METRIC_LABELS[name] for name in TRACKING_METRICS)],
+        rows,
+        files,
+    )
+
+
+def _millimetres(value: float | None) -> str:
+    return "-" if value is None or math.isnan(value) else f"{value:.1f}"
 
 
 def build_report(run: str | Path, out: str | Path | None = None, evaluate_episodes: int = 0) -> Report:
@@ -155,6 +201,9 @@ def build_report(run: str | Path, out: str | Path | None = None, evaluate_episod
                 [rel(scores.path)],
             )
         )
+    tracking = _tracking_section(contents, rel)
+    if tracking is not None:
+        sections.append(tracking)
     if contents.transfer:
         written.append(figures.plot_transfer_curves(contents.transfer, out / "transfer_curves.png"))
         bands = figures.transfer_bands(contents.transfer)

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from hierarchy.transfer.config import RESUME_FREE_FIELDS, SB3_RETURN_KEY, TASK_RETURN_KEY, nested_config_dict
+from tasks.tracking.metrics import TRACKING_METRICS
 
 SKIPPED_FOLDERS = {"checkpoint", "tensorboard", "report", "__pycache__"}
 """Folders never searched: training internals and the report's own output."""
@@ -61,12 +62,15 @@ class ExpertEvaluation:
         action_noise: The evaluation's action noise (0: deterministic).
         init: ``random`` or ``start``.
         results: Snippet id to ``(normalised reward, normalised length)``.
+        tracking: Snippet id to its tracking metrics (:mod:`tasks.tracking.metrics`); empty in files
+            written before the library measured them.
     """
 
     path: Path
     action_noise: float
     init: str
     results: dict[str, tuple[float, float]]
+    tracking: dict[str, dict[str, float]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -77,11 +81,14 @@ class MultiClipScores:
         path: The file they came from.
         policy: Snippet id to the policy's ``(normalised reward, normalised length)``.
         experts: Snippet id to the experts' ``(normalised reward, normalised length)``.
+        tracking: Snippet id to the policy's tracking metrics (:mod:`tasks.tracking.metrics`); empty in
+            files written before the library measured them.
     """
 
     path: Path
     policy: dict[str, tuple[float, float]]
     experts: dict[str, tuple[float, float]]
+    tracking: dict[str, dict[str, float]] = field(default_factory=dict)
 
     def fractions(self) -> dict[str, tuple[float, float]]:
         """Snippet id to the policy's fraction of its expert's reward and length (snippets with both)."""
@@ -256,16 +263,34 @@ def _expert_run(root: Path, folder: Path, clip_info: dict) -> ExpertRun | None:
     return ExpertRun(snippet, group, end - start, records, (folder / "done.json").is_file(), folder)
 
 
+def _tracking(row: dict) -> dict[str, float] | None:
+    """A result row's tracking metrics (nested under ``tracking`` or flat in the row), or None without them."""
+    source = row.get("tracking", row)
+    if not isinstance(source, dict) or "success" not in source:
+        return None
+    return {name: float(source[name]) for name in TRACKING_METRICS if name in source}
+
+
+def _tracking_by_snippet(rows: dict[str, dict]) -> dict[str, dict[str, float]]:
+    return {snippet: found for snippet, row in rows.items() if (found := _tracking(row)) is not None}
+
+
 def _expert_evaluation(path: Path, data: dict) -> ExpertEvaluation:
     config = data["config"]
-    results = {row["snippet"]: _pair(row) for row in data["results"] if "snippet" in row}
-    return ExpertEvaluation(path, float(config.get("action_noise", 0.1)), str(config.get("init", "random")), results)
+    rows = {row["snippet"]: row for row in data["results"] if "snippet" in row}
+    return ExpertEvaluation(
+        path,
+        float(config.get("action_noise", 0.1)),
+        str(config.get("init", "random")),
+        {snippet: _pair(row) for snippet, row in rows.items()},
+        _tracking_by_snippet(rows),
+    )
 
 
 def _multi_clip_from_eval(path: Path, data: dict) -> MultiClipScores:
     policy = {s: _pair(row) for s, row in data["policy"].items()}
     experts = {s: _pair(row) for s, row in data["experts"].items() if "normalized_reward" in row}
-    return MultiClipScores(path, policy, experts)
+    return MultiClipScores(path, policy, experts, _tracking_by_snippet(data["policy"]))
 
 
 def _multi_clip_from_quickstart(path: Path, summary: dict) -> MultiClipScores | None:
@@ -273,7 +298,8 @@ def _multi_clip_from_quickstart(path: Path, summary: dict) -> MultiClipScores | 
     if not isinstance(multi_clip, dict):
         return None
     experts = {row["snippet"]: _pair(row) for row in summary.get("experts", []) if "normalized_reward" in row}
-    return MultiClipScores(path, {s: _pair(row) for s, row in multi_clip.items()}, experts)
+    policy = {s: _pair(row) for s, row in multi_clip.items()}
+    return MultiClipScores(path, policy, experts, _tracking_by_snippet(multi_clip))
 
 
 def _transfer_run(root: Path, folder: Path, info: dict) -> TransferRun | None:

@@ -114,7 +114,7 @@ class MotionCompletionEnv(ClipTrackingEnv):
         phase = "prompt" if self._episode_length <= self.completion.prompt_steps else "completion"
         return terminated, truncated, {"fell": fell, "phase": phase}
 
-    def _episode_summary(self) -> dict[str, float]:
+    def _episode_summary(self, terminated: bool) -> dict[str, float]:
         prompt = self.completion.prompt_steps
         return {
             "episode_return": self._episode_return,

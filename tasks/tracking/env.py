@@ -18,9 +18,12 @@ Episode semantics (dm_control's):
   of the snippet (``min_steps=9`` excludes the last 10 frames, as MoCapAct's
   experts do); ``init="start"`` always starts at the first frame;
 * ``terminated`` when the tracking error exceeds the threshold (0.3), or the
-  physics diverged; ``truncated`` when the reference runs out;
+  physics diverged; ``truncated`` when the reference runs out (with
+  ``termination="distance"``, PHC's criterion replaces the tracking error:
+  the tracked bodies' mean distance from the reference above 0.5 m);
 * at the end of an episode ``info`` holds MoCapAct's normalised episode
-  reward and length.
+  reward and length, and the tracking metrics of :mod:`tasks.tracking.metrics`
+  (success, position, velocity and acceleration errors in millimetres).
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ from tasks.observables import (
     resolve_observables,
 )
 from tasks.simulation import checked_action, control_step, forward_without_actuation
+from tasks.tracking.metrics import FAILURE_DISTANCE, TERMINATIONS, EpisodeTrackingErrors
 from tasks.tracking.reference import SnippetReference, WalkerState
 from tasks.tracking.rewards import comic_reward, termination_error
 from tasks.walker import CONTROL_TIMESTEP, WalkerModel, build_walker
@@ -71,7 +75,11 @@ class TrackingConfig:
         min_steps: Random starts leave at least ``min_steps + 1`` frames (plus
             the look-ahead) before the snippet's end; 9 excludes the last 10
             frames (training), 29 the last 30 (the paper's evaluation).
-        termination_threshold: Tracking error that ends an episode.
+        termination_threshold: Tracking error that ends an episode (and scales the reward's
+            termination term).
+        termination: What ends an episode early: ``"error"`` (MoCapAct's: the tracking error
+            above ``termination_threshold``) or ``"distance"`` (PHC's: the tracked bodies' mean
+            distance from the reference above 0.5 m); see :mod:`tasks.tracking.metrics`.
         action_noise: Standard deviation of Gaussian noise added to actions
             (MoCapAct's experts: 0.1); noisy actions are clipped to [-1, 1].
         snippet_weights: Optional per-snippet weights (default 1 each).
@@ -89,6 +97,7 @@ class TrackingConfig:
     init: str = "random"
     min_steps: int = 9
     termination_threshold: float = 0.3
+    termination: str = "error"
     action_noise: float = 0.0
     snippet_weights: tuple[float, ...] | None = field(default=None)
     residual_actions: bool = False
@@ -119,6 +128,8 @@ class ClipTrackingEnv(gym.Env):
             raise ValueError(f"ref_steps must be non-negative offsets, got {config.ref_steps}")
         if config.termination_threshold <= 0:
             raise ValueError("termination_threshold must be positive")
+        if config.termination not in TERMINATIONS:
+            raise ValueError(f"termination must be one of {TERMINATIONS}, got {config.termination!r}")
         if config.action_noise < 0:
             raise ValueError("action_noise must be >= 0")
         self.walker = walker or build_walker()
@@ -155,6 +166,8 @@ class ClipTrackingEnv(gym.Env):
         self._episode_return = 0.0
         self._episode_length = 0
         self._start_time_in_clip = 0.0
+        self._tracking = EpisodeTrackingErrors(np.zeros((1, 3)))
+        self._body_distance = 0.0
 
     # Setup -------------------------------------------------------------------
 
@@ -244,6 +257,8 @@ class ClipTrackingEnv(gym.Env):
             )
         self._episode_active = True
         self._episode_return, self._episode_length = 0.0, 0
+        self._tracking = EpisodeTrackingErrors(self._state.body_positions - reference.body_positions[time_step])
+        self._body_distance = 0.0
         self._start_time_in_clip = reference.time_in_clip(time_step, 0.0)
         info = {"snippet": str(reference.snippet), "start_step": reference.first_frame + time_step}
         return self._observation(), info
@@ -295,6 +310,9 @@ class ClipTrackingEnv(gym.Env):
         self._previous, self._state = self._state, WalkerState.read(self.walker, self._data)
         state, reference, t = self._state, self._reference, self._time_step
         error = self._error(state)
+        self._body_distance = self._tracking.add(
+            state.body_positions - reference.body_positions[t], state.root_position - reference.root_position[t]
+        )
         reward, terms = comic_reward(
             error,
             self.config.termination_threshold,
@@ -324,7 +342,7 @@ class ClipTrackingEnv(gym.Env):
             info["physics_diverged"] = True
         if terminated or truncated:
             self._episode_active = False
-            info.update(self._episode_summary())
+            info.update(self._episode_summary(terminated))
         return observation, reward, terminated, truncated, info
 
     def _next_time_step(self) -> int:
@@ -332,8 +350,12 @@ class ClipTrackingEnv(gym.Env):
         return self._time_step + 1
 
     def _episode_end(self, error: float, diverged: bool) -> tuple[bool, bool, dict]:
-        """``(terminated, truncated, extra info)`` after a step: fail above the error threshold, end with the clip."""
-        terminated = error > self.config.termination_threshold or diverged
+        """``(terminated, truncated, extra info)`` after a step: fail per ``config.termination``, end with the clip."""
+        if self.config.termination == "distance":
+            failed = self._body_distance > FAILURE_DISTANCE
+        else:
+            failed = error > self.config.termination_threshold
+        terminated = failed or diverged
         return terminated, not terminated and self._time_step == self._reference.last_step, {}
 
     def absolute_action(self, action: np.ndarray) -> np.ndarray:
@@ -358,8 +380,8 @@ class ClipTrackingEnv(gym.Env):
             state.body_positions, self._reference.body_positions[t], state.joints, self._reference.joints[t]
         )
 
-    def _episode_summary(self) -> dict[str, float]:
-        """MoCapAct's normalised episode reward and length."""
+    def _episode_summary(self, terminated: bool) -> dict[str, float]:
+        """MoCapAct's normalised episode reward and length, and the tracking metrics."""
         reference = self._reference
         start = self._start_time_in_clip
         end = reference.time_in_clip(self._time_step_at_reset, self._data.time)
@@ -370,6 +392,7 @@ class ClipTrackingEnv(gym.Env):
             "episode_length": self._episode_length,
             "normalized_episode_length": float(length_norm),
             "normalized_episode_reward": float(self._episode_return / self._episode_length * length_norm),
+            **self._tracking.summary(success=not terminated),
         }
 
     # Observations ----------------------------------------------------------------

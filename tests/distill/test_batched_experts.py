@@ -22,6 +22,7 @@ from distill.experts.sb3_import import convert_sb3_expert
 from foundation.config_files import with_settings
 from foundation.interrupts import StopFlag, TrainingStopped
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
+from tasks.tracking.metrics import TRACKING_METRICS
 
 SNIPPETS = ["SYN_wave-0-60", "SYN_walk_slow-0-60"]
 TINY = with_settings(
@@ -62,7 +63,8 @@ def test_every_snippet_gets_a_complete_expert_directory(trained):
         assert done["batched_evaluation"]["config"]["engine"] == "warp"
         records = json.loads(expert.evaluations.read_text())
         assert [r["steps"] for r in records] == [0, 128, 256]
-        assert len(records[1]["training_episodes"]) == 3 and len(records[0]) == 6
+        assert len(records[1]["training_episodes"]) == 3 and len(records[0]) == 7
+        assert set(records[0]["tracking"]) == set(TRACKING_METRICS)  # measured by the batched engine
     assert train_experts_batched(SNIPPETS, out, TINY, progress=False) == {}  # done experts are skipped
 
 
@@ -174,13 +176,18 @@ def test_cpu_and_batched_evaluations_of_one_expert_agree(trained, clip_library):
 
     out, _ = trained
     policies = {s: ExpertPolicy.load(expert_dir_for(out, s)) for s in SNIPPETS}
-    protocol = EvaluationConfig(episodes=3, init="start", action_noise=0.0)  # deterministic: same episodes
-    batched = evaluate_policies_batched(policies, protocol, str(clip_library), device="cpu", worlds_per_snippet=2)
-    for snippet, policy in policies.items():
-        cpu = evaluate_policy(policy, snippet, protocol, clips=str(clip_library))
-        assert batched[snippet].per_episode["length"] == cpu.per_episode["length"]
-        np.testing.assert_allclose(batched[snippet].per_episode["return"], cpu.per_episode["return"], rtol=1e-4)
-        assert batched[snippet].normalized_reward == pytest.approx(cpu.normalized_reward, rel=1e-4)
+    for termination in ("error", "distance"):  # deterministic: the same episodes on both engines
+        protocol = EvaluationConfig(episodes=3, init="start", action_noise=0.0, termination=termination)
+        batched = evaluate_policies_batched(policies, protocol, str(clip_library), device="cpu", worlds_per_snippet=2)
+        for snippet, policy in policies.items():
+            cpu = evaluate_policy(policy, snippet, protocol, clips=str(clip_library))
+            found = batched[snippet].per_episode
+            assert found["length"] == cpu.per_episode["length"]
+            assert found["success"] == cpu.per_episode["success"]
+            np.testing.assert_allclose(found["return"], cpu.per_episode["return"], rtol=1e-4)
+            assert batched[snippet].normalized_reward == pytest.approx(cpu.normalized_reward, rel=1e-4)
+            for name in TRACKING_METRICS[1:]:  # millimetres, from float32 physics on one side
+                np.testing.assert_allclose(found[name], cpu.per_episode[name], rtol=1e-3, atol=0.05, err_msg=name)
 
 
 def test_the_command_line_trains_with_the_warp_engine_and_refuses_flags_of_the_other(tmp_path, clip_library, capsys):

@@ -302,3 +302,31 @@ def test_rollout_noise_is_the_seeds_unless_told_to_keep_the_experts(tmp_path, ac
     )
     inside = np.abs(noise) < 0.9  # clipping at the action bounds shrinks the largest draws
     assert np.median(np.abs(noise[inside])) / 0.674 == pytest.approx(expected_std, rel=0.15)
+
+
+def test_files_record_each_episodes_tracking_metrics_and_the_reader_averages_them(rollout_dir, tmp_path):
+    dataset = RolloutDataset(rollout_dir / "SYN_wave.hdf5")
+    with h5py.File(rollout_dir / "SYN_wave.hdf5") as f:
+        metrics = f["SYN_wave-0-196/rsi_metrics"]
+        lengths = metrics[schema.NORM_EPISODE_LENGTHS][...]
+        success = metrics["success"][...]
+        np.testing.assert_array_equal(
+            success, [1.0 if not t else 0.0 for t in f["SYN_wave-0-196/early_termination"][2:]]
+        )
+        errors = metrics["global_position_error_mm"][...]
+        assert np.all((errors > 0) & (errors < 300)) and np.all(lengths[success == 1] == pytest.approx(1.0))
+        expected = float(np.mean(errors))
+    row = dataset.expert_metrics("random")["SYN_wave-0-196"]
+    assert row["global_position_error_mm"] == pytest.approx(expected)
+    assert row["success"] == pytest.approx(float(np.mean(success)))
+    copy = tmp_path / "SYN_wave.hdf5"  # files without the metrics (MoCapAct's, ours from before) read as before
+    copy.write_bytes((rollout_dir / "SYN_wave.hdf5").read_bytes())
+    with h5py.File(copy, "r+") as f:
+        for group in ("start_metrics", "rsi_metrics"):
+            for snippet in ("SYN_wave-0-196", "SYN_wave-163-360"):
+                for name in schema.TRACKING_METRIC_NAMES:
+                    del f[f"{snippet}/{group}/{name}"]
+    assert set(RolloutDataset(copy).expert_metrics("random")["SYN_wave-0-196"]) == {
+        "normalized_reward",
+        "normalized_length",
+    }

@@ -4,8 +4,9 @@
 :class:`tasks.tracking.env.ClipTrackingEnv` on one device. Each world tracks
 its own snippet (any mix in one batch), starts from a reference state or the
 snippet's start, and resets itself when its episode ends. Physics, every
-observable, the CoMic reward, the termination at tracking error 0.3 and the
-truncation at the snippet's end are the CPU env's, computed on the device as
+observable, the CoMic reward, the termination at tracking error 0.3 (or PHC's
+body distance), the truncation at the snippet's end and the tracking metrics of
+:mod:`tasks.tracking.metrics` are the CPU env's, computed on the device as
 torch tensors: nothing goes through the host per step except one flag (does
 any world need a reset?). ``tests/tasks/test_batched_tracking.py`` checks
 observations, reward and termination against the CPU env from identical
@@ -43,6 +44,7 @@ from tasks.tracking.batched.features import (
 )
 from tasks.tracking.batched.physics import ContactCapacity, WarpPhysics
 from tasks.tracking.env import INITIAL_ERROR_LIMIT, ClipMismatchError, ClipTrackingEnv, TrackingConfig
+from tasks.tracking.metrics import FAILURE_DISTANCE, TRACKING_METRICS
 from tasks.walker import CONTROL_TIMESTEP
 
 CAPACITY_CHECK_EVERY = 64
@@ -60,6 +62,8 @@ class EpisodeEnds:
         normalized_episode_length: MoCapAct's normalised length (1: tracked to the end).
         normalized_episode_reward: MoCapAct's normalised reward.
         snippet: Index of the snippet the episode tracked.
+        tracking: The tracking metrics of :mod:`tasks.tracking.metrics` (``success`` as 1.0 or 0.0,
+            the errors in millimetres; NaN where an episode had no step to average).
         final_observations: The observations that ended each finished episode (before its
             world was reset); only with ``keep_final_observations``.
     """
@@ -70,6 +74,7 @@ class EpisodeEnds:
     normalized_episode_length: torch.Tensor
     normalized_episode_reward: torch.Tensor
     snippet: torch.Tensor
+    tracking: dict[str, torch.Tensor]
     final_observations: dict[str, torch.Tensor] | None = None
 
 
@@ -142,6 +147,11 @@ class BatchedTrackingEnv:
         self.applied_actions = torch.zeros(num_worlds, self.action_size, device=self.device)
         self._state: BatchedWalkerState | None = None
         self._previous: BatchedWalkerState | None = None
+        self._error_sums = {
+            name: torch.zeros(num_worlds, dtype=torch.float64, device=self.device) for name in TRACKING_METRICS[1:]
+        }
+        self._offsets = torch.zeros(num_worlds, len(self.walker.tracking_bodies), 3, device=self.device)
+        self._earlier_offsets = self._offsets.clone()
 
     def load_worlds(
         self,
@@ -189,6 +199,7 @@ class BatchedTrackingEnv:
         state = BatchedWalkerState.read(self.physics.view, self._index)
         self._state = state.where(mask, self._state)
         self._previous = state.where(mask, self._previous)  # type: ignore[arg-type]
+        self._restart_tracking_errors(mask)
 
     def _pin(self, world_snippets: Sequence[int] | np.ndarray) -> torch.Tensor:
         pinned = np.asarray(world_snippets, dtype=np.int64)
@@ -261,6 +272,43 @@ class BatchedTrackingEnv:
         state = BatchedWalkerState.read(self.physics.view, self._index)
         self._state = state
         self._previous = state if self._previous is None else state.where(worlds, self._previous)
+        self._restart_tracking_errors(worlds)
+
+    def _restart_tracking_errors(self, worlds: torch.Tensor) -> None:
+        """Starts the tracking metrics' sums of the worlds in the mask from their current state.
+
+        A world loaded mid-episode (:meth:`load_worlds`) restarts them too: its metrics then cover
+        the steps since.
+        """
+        offsets = self._body_offsets()
+        shaped = worlds[:, None, None]
+        self._offsets = torch.where(shaped, offsets, self._offsets)
+        self._earlier_offsets = torch.where(shaped, offsets, self._earlier_offsets)
+        for name, total in self._error_sums.items():
+            self._error_sums[name] = torch.where(worlds, 0.0, total)
+
+    def _body_offsets(self) -> torch.Tensor:
+        """``(N, 31, 3)``: the tracked bodies' offsets from the reference's at the current step."""
+        assert self._state is not None
+        return self._state.body_positions - self.bank.body_positions[self.snippet, self.time_step]
+
+    def _add_tracking_errors(self) -> torch.Tensor:
+        """Adds this step's errors to the sums (:mod:`tasks.tracking.metrics`); returns the global error (m)."""
+        assert self._state is not None
+        offsets = self._body_offsets()
+        root = self._state.root_position - self.bank.root_position[self.snippet, self.time_step]
+        velocity = offsets - self._offsets
+        acceleration = velocity - (self._offsets - self._earlier_offsets)
+        distance = torch.linalg.vector_norm(offsets, dim=-1).mean(1)
+        sums = self._error_sums
+        sums["global_position_error_mm"] += distance.double()
+        sums["local_position_error_mm"] += torch.linalg.vector_norm(offsets - root[:, None], dim=-1).mean(1).double()
+        sums["velocity_error_mm"] += torch.linalg.vector_norm(velocity, dim=-1).mean(1).double()
+        has_acceleration = self.episode_length >= 1  # before this step's increment
+        step_acceleration = torch.linalg.vector_norm(acceleration, dim=-1).mean(1).double()
+        sums["acceleration_error_mm"] += torch.where(has_acceleration, step_acceleration, 0.0)
+        self._earlier_offsets, self._offsets = self._offsets, offsets
+        return distance
 
     def _draw_snippets(self) -> torch.Tensor:
         return torch.multinomial(
@@ -306,12 +354,17 @@ class BatchedTrackingEnv:
         error = tracking_error(state, self.bank, snippet, t)
         reward = comic_reward(error, self.config.termination_threshold, state, self.bank, snippet, t)
         reward = torch.where(unstable, torch.zeros_like(reward), reward)
+        distance = self._add_tracking_errors()
         self.episode_length = self.episode_length + 1
         self.episode_return = self.episode_return + reward.double()
-        terminated = (error > self.config.termination_threshold) | unstable
+        if self.config.termination == "distance":
+            failed = distance > FAILURE_DISTANCE
+        else:
+            failed = error > self.config.termination_threshold
+        terminated = failed | unstable
         truncated = ~terminated & (t == self.bank.last_step[snippet])
         done = terminated | truncated
-        ends = self._episode_ends(done)
+        ends = self._episode_ends(done, terminated)
         self.unstable_resets = self.unstable_resets + unstable.sum()
         if bool(done.any()):
             if self.keep_final_observations:
@@ -337,13 +390,18 @@ class BatchedTrackingEnv:
             return actions
         return (actions + self.bank.playback[self.snippet, self.time_step]).clamp(-1.0, 1.0)
 
-    def _episode_ends(self, done: torch.Tensor) -> EpisodeEnds:
+    def _episode_ends(self, done: torch.Tensor, terminated: torch.Tensor) -> EpisodeEnds:
         bank, snippet = self.bank, self.snippet
         duration, dt = bank.duration[snippet], bank.dt
         start = self.time_step_at_reset.double() * dt / duration
         end = (self.time_step_at_reset.double() * dt + self.episode_length.double() * CONTROL_TIMESTEP) / duration
         last = bank.last_step[snippet].double() / (bank.num_frames[snippet].double() - 1)
         length = (end - start) / (last - start)
+        steps = self.episode_length.double()
+        tracking = {"success": (~terminated).double()}
+        for name, total in self._error_sums.items():
+            count = steps - 1 if name == "acceleration_error_mm" else steps
+            tracking[name] = torch.where(count > 0, 1000.0 * total / count.clamp(min=1), torch.nan)
         return EpisodeEnds(
             done=done,
             episode_return=self.episode_return,
@@ -351,6 +409,7 @@ class BatchedTrackingEnv:
             normalized_episode_length=length,
             normalized_episode_reward=self.episode_return / self.episode_length.clamp(min=1) * length,
             snippet=snippet,
+            tracking=tracking,
         )
 
     # Observations ----------------------------------------------------------------
