@@ -27,7 +27,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -327,6 +327,7 @@ class DatasetTraining:
         episodes: Episodes in the dataset.
         write: This process should write the final files: rank 0, unless the run had
             already finished and its files are in place (they keep their bytes and hashes).
+        snippets: The dataset's snippet ids, sorted.
     """
 
     model: nn.Module
@@ -334,6 +335,7 @@ class DatasetTraining:
     data_files: list[str]
     episodes: int
     write: bool
+    snippets: list[str] = field(default_factory=list)
 
 
 def train_on_dataset(
@@ -387,7 +389,7 @@ def train_on_dataset(
         outcome = train(model, batches, out, trainer, resume, progress=progress, description=description)
         finished = outcome.already_finished and all((out / name).is_file() for name in outputs)
         write = distributed_from_environment().is_main and not finished
-        return DatasetTraining(model, outcome, files, len(dataset.episodes), write)
+        return DatasetTraining(model, outcome, files, len(dataset.episodes), write, dataset.snippets())
     finally:
         dataset.close()
 

@@ -10,6 +10,8 @@ modules that build networks or read model files, and only when they are used):
 * :mod:`foundation.networks`: the MLP layouts of every model file
   (:mod:`foundation.activations`: the activations' names, without torch);
 * :mod:`foundation.provenance`: date and library version stamped into files;
+* :mod:`foundation.onnx_files`: ONNX graphs for deployment, their metadata and their parity with torch
+  (:mod:`foundation.interfaces`: a model's inputs and outputs as plain data);
 * :mod:`foundation.sb3`: the one stable-baselines3 PPO builder and its save helpers;
 * :mod:`foundation.lockstep`: several environments stepped for one batched policy call;
 * :mod:`foundation.config_cli`: typed dataclass configs as command-line flags;

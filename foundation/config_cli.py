@@ -163,6 +163,39 @@ def dataclass_from_args(cls: type[T], namespace: argparse.Namespace, base: T | N
     return with_settings(base if base is not None else cls(), values)
 
 
+def dataclass_flags(config: Any, base: Any = None, exclude: tuple[str, ...] = ()) -> list[str]:
+    """The flags of :func:`add_dataclass_arguments` that turn ``base`` into ``config``: one per setting that differs.
+
+    The inverse of :func:`dataclass_from_args`: parsed back with ``base`` as the base, the flags give
+    ``config``. A nested block's settings go by their own names; a ``bool`` is ``--name`` or
+    ``--no-name``; a tuple lists its values after one flag. A setting changed to None, or to an
+    empty tuple, has no flag form and is left out.
+
+    Args:
+        config: The config dataclass instance.
+        base: What the command line would default to (default: the class's defaults).
+        exclude: Settings the command line has no flag for.
+    """
+    base = base if base is not None else type(config)()
+    blocks = nested_blocks(type(config))
+    flags: list[str] = []
+    for f in dataclasses.fields(config):
+        value, default = getattr(config, f.name), getattr(base, f.name)
+        if f.name in exclude or value == default:
+            continue
+        if f.name in blocks:
+            flags += dataclass_flags(value, default, exclude)
+            continue
+        flag = "--" + f.name.replace("_", "-")
+        if isinstance(value, bool):
+            flags.append(flag if value else "--no-" + flag[2:])
+        elif isinstance(value, tuple | list) and value:
+            flags += [flag, *(str(item) for item in value)]
+        elif value is not None and not isinstance(value, tuple | list):
+            flags += [flag, str(value)]
+    return flags
+
+
 def file_in_folder(path: Path, name: str) -> Path:
     """``path`` itself, or ``path / name`` when ``path`` is a folder (commands accept either)."""
     return path / name if path.is_dir() else path

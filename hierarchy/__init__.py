@@ -6,6 +6,7 @@
 * :mod:`hierarchy.latent_prior`: an optional state-conditioned prior ``mu(s)`` of a decoder's
   latent, which high-level actions can be residuals on;
 * :mod:`hierarchy.task_policy`: the pickle-free high-level policy file;
+* :mod:`hierarchy.onnx_export`: the decoder and task policies as ONNX graphs, for deployment;
 * :mod:`hierarchy.transfer`: high-level PPO on a registered task or your own env factory
   (training, evaluation, the run folder; its settings in :mod:`hierarchy.transfer.config`);
 * :mod:`hierarchy.importers`: MoCapAct's checkpoints converted into decoder files.

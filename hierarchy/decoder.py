@@ -42,6 +42,7 @@ import torch
 from torch import nn
 
 from foundation.described_file import read_described, write_described
+from foundation.interfaces import flat_observation_port, vector_port
 from foundation.networks import ACTIVATIONS, mlp
 from hierarchy.pretrained import names_hint, resolve_decoder
 
@@ -115,24 +116,12 @@ class DecoderSpec:
         and ``dtype``; the observation lists its ``keys`` (``key``, ``size``, ``offset`` in the flat
         vector), the latent its ``bound``, the action its ``low`` and ``high``.
         """
-        keys, offset = [], 0
-        for key, size in self.observation_sizes.items():
-            keys.append({"key": key, "size": size, "offset": offset})
-            offset += size
         return {
             "inputs": [
-                {"name": "observation", "shape": ["batch", self.observation_size], "dtype": "float32", "keys": keys},
-                {"name": "latent", "shape": ["batch", self.latent_size], "dtype": "float32", "bound": self.latent_bound},
+                flat_observation_port(self.observation_sizes),
+                vector_port("latent", self.latent_size, bound=self.latent_bound),
             ],
-            "outputs": [
-                {
-                    "name": "action",
-                    "shape": ["batch", self.action_size],
-                    "dtype": "float32",
-                    "low": self.action_low,
-                    "high": self.action_high,
-                }
-            ],
+            "outputs": [vector_port("action", self.action_size, low=self.action_low, high=self.action_high)],
         }
 
     def to_json(self) -> dict[str, Any]:

@@ -1,13 +1,18 @@
-"""Model cards of decoder files: what a decoder was made from and how well it does.
+"""Model cards of decoder files: the card's JSON, stored inside the file, and how it is attached.
 
 A card is plain JSON stored in the decoder file's description under
-``provenance["model_card"]`` (so ``decoder info`` shows it and nothing else
-needs a separate file) and rendered to Markdown for ``docs/``. Its fields:
+``provenance["model_card"]`` (so ``decoder info`` shows it and the file is its
+one source); :mod:`hierarchy.card_page` renders it, with the rest of the file's
+description, as a Markdown page (``decoder card``, the documentation site, the
+``MODEL_CARD.md`` that ``distill train`` writes beside its decoder). Its fields,
+all optional:
 
 * ``name``, ``summary``: what it is, in a line;
+* ``intended_use``: what it is for (a generic paragraph by kind when absent);
 * ``data``: the clips, snippets and rollout episodes it was distilled from;
 * ``experts``: ``{snippet: {normalized_reward, normalized_length}}`` of the experts;
-* ``multi_clip``: the same for the distilled multi-clip policy, plus ``fraction``;
+* ``multi_clip``: the same for the distilled multi-clip policy (``snippets``), plus ``fraction``;
+* ``protocol``: how the scores were measured;
 * ``budgets``: training steps and wall time of each stage, and where it ran;
 * ``commands``: the commands that rebuild it, in order;
 * ``notes``: limitations a user should know.
@@ -16,6 +21,7 @@ needs a separate file) and rendered to Markdown for ``docs/``. Its fields:
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -25,6 +31,72 @@ import torch
 from hierarchy.decoder import LatentDecoder, load_decoder
 
 CARD_KEY = "model_card"
+
+CARD_FIELDS: dict[str, type] = {
+    "name": str,
+    "summary": str,
+    "intended_use": str,
+    "protocol": str,
+    "data": dict,
+    "budgets": dict,
+    "experts": dict,
+    "multi_clip": dict,
+    "commands": list,
+    "notes": list,
+}
+"""The card's known fields and the JSON type each holds (``commands`` and ``notes``: lists of strings)."""
+
+_JSON_NAMES = {str: "a string", dict: "a mapping", list: "a list", int: "a number", float: "a number"}
+
+
+class ModelCardError(ValueError):
+    """A model card whose fields are not of the expected JSON types."""
+
+
+def check_card(card: Any, where: str = "") -> dict[str, Any]:
+    """Returns ``card`` when its known fields have the expected types; unknown fields pass.
+
+    Args:
+        card: The card as read from JSON.
+        where: What the card belongs to, for messages (a file name).
+
+    Raises:
+        ModelCardError: Naming the field, the type it needs and the type it has.
+    """
+    prefix = f"{where}: " if where else ""
+    if not isinstance(card, Mapping):
+        raise ModelCardError(f"{prefix}a model card is a JSON mapping of fields, not {_kind(card)}")
+
+    def require(field: str, value: Any, kind: type | tuple[type, ...], needed: str) -> None:
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise ModelCardError(f"{prefix}model card field `{field}` must be {needed}, not {_kind(value)}")
+
+    for field, kind in CARD_FIELDS.items():
+        if field in card:
+            require(field, card[field], kind, _JSON_NAMES[kind])
+    for field in ("commands", "notes"):
+        for number, item in enumerate(card.get(field, [])):
+            require(f"{field}[{number}]", item, str, "a string")
+    policy = card.get("multi_clip", {})
+    for field in ("snippets", "fraction"):
+        if field in policy:
+            require(f"multi_clip.{field}", policy[field], dict, "a mapping")
+    rows = {f"experts.{k}": v for k, v in card.get("experts", {}).items()}
+    rows.update({f"multi_clip.snippets.{k}": v for k, v in policy.get("snippets", {}).items()})
+    for field, row in rows.items():
+        require(field, row, dict, "a mapping of normalized_reward and normalized_length")
+        for key in ("normalized_reward", "normalized_length"):
+            if row.get(key) is not None:
+                require(f"{field}.{key}", row[key], (int, float), "a number")
+    return dict(card)
+
+
+def _kind(value: Any) -> str:
+    if isinstance(value, bool):
+        return "a boolean"
+    if value is None:
+        return "null"
+    return next((name for kind, name in _JSON_NAMES.items() if isinstance(value, kind)), type(value).__name__)
 
 
 def card_of(decoder: LatentDecoder) -> dict[str, Any] | None:
@@ -41,7 +113,11 @@ def package_decoder(
         ``(path, largest absolute action difference)`` between the written and the
         source decoder on random observations around the dataset mean and latents
         within the bound (0 for float32).
+
+    Raises:
+        ModelCardError: The card's fields are not of the expected types.
     """
+    card = check_card(card, f"the card for {out}")
     decoder = load_decoder(source)
     decoder.spec = replace(decoder.spec, provenance={**decoder.spec.provenance, CARD_KEY: card})
     path = decoder.save(out, torch.float16 if float16 else torch.float32)
@@ -54,6 +130,7 @@ def card_with_scores(card: dict[str, Any], evaluation: dict[str, Any]) -> dict[s
     Sets ``experts``, ``multi_clip`` (``snippets`` and ``fraction``) and, unless the
     card has one, ``protocol`` (from the evaluation's settings).
     """
+    card = check_card(card)
     missing = [key for key in ("policy", "experts", "fraction") if key not in evaluation]
     if missing:
         raise ValueError(
@@ -85,66 +162,3 @@ def action_difference(first: LatentDecoder, second: LatentDecoder, samples: int 
     z = (torch.rand(samples, spec.latent_size, generator=generator) * 2 - 1) * spec.latent_bound
     with torch.no_grad():
         return float((first(observation, z) - second(observation, z)).abs().max())
-
-
-def card_markdown(card: dict[str, Any], file_name: str = "") -> str:
-    """The card as a Markdown page (what ``mocap-hierarchy decoder card`` writes)."""
-    lines = [f"# Decoder `{card.get('name', file_name)}`", "", card.get("summary", ""), ""]
-    data = card.get("data", {})
-    if data:
-        lines += ["## Data", ""] + [f"- **{key}**: {_text(value)}" for key, value in data.items()] + [""]
-    if card.get("experts"):
-        lines += ["## Scores", "", *scores_markdown(card)]
-    budgets = card.get("budgets", {})
-    if budgets:
-        lines += ["## Budgets", ""] + [f"- **{key}**: {_text(value)}" for key, value in budgets.items()] + [""]
-    commands = card.get("commands", [])
-    if commands:
-        lines += ["## Commands that rebuild it", "", "```bash", *commands, "```", ""]
-    notes = card.get("notes", [])
-    if notes:
-        lines += ["## Limitations", ""] + [f"- {note}" for note in notes] + [""]
-    return "\n".join(lines)
-
-
-def scores_markdown(card: dict[str, Any]) -> list[str]:
-    """The card's scores as Markdown lines: its protocol, a table per snippet, the multi-clip fraction.
-
-    Empty when the card holds no expert scores.
-    """
-    experts, policy = card.get("experts", {}), card.get("multi_clip", {})
-    if not experts:
-        return []
-    lines = [
-        card.get("protocol", ""),
-        "",
-        "| snippet | expert reward | expert length | multi-clip reward | multi-clip length | fraction (reward) |",
-        "|---|---|---|---|---|---|",
-    ]
-    for snippet, row in experts.items():
-        other = policy.get("snippets", {}).get(snippet, {})
-        reward = other.get("normalized_reward")
-        fraction = reward / row["normalized_reward"] if reward is not None and row["normalized_reward"] else None
-        lines.append(
-            f"| {snippet} | {row['normalized_reward']:.3f} | {row['normalized_length']:.3f} | "
-            f"{_number(reward)} | {_number(other.get('normalized_length'))} | {_number(fraction)} |"
-        )
-    fraction = policy.get("fraction", {})
-    if fraction:
-        lines += [
-            "",
-            f"Multi-clip policy as a fraction of the experts (mean over {fraction.get('snippets')} snippets): "
-            f"reward **{_number(fraction.get('normalized_reward'))}**, "
-            f"length **{_number(fraction.get('normalized_length'))}**.",
-        ]
-    return [*lines, ""]
-
-
-def _number(value: float | None) -> str:
-    return "-" if value is None else f"{value:.3f}"
-
-
-def _text(value: Any) -> str:
-    if isinstance(value, list | tuple):
-        return ", ".join(str(v) for v in value)
-    return str(value)

@@ -97,13 +97,15 @@ def main(argv: list[str] | None = None) -> int:
 
 def run_command(args: argparse.Namespace) -> int:
     """Runs the parsed command; turns the errors a user can act on into one line and an exit status."""
+    from foundation.onnx_files import MissingExportPackageError
     from tasks.tracking.batched.backend import WarpUnavailableError
     from tasks.viz.video import VideoUnavailableError
 
+    missing_extra = (VideoUnavailableError, WarpUnavailableError, MissingExportPackageError)
     try:
         load_task_modules(args.tasks_from)
         args.handler(args)
-    except (ValueError, FileNotFoundError, KeyError, VideoUnavailableError, WarpUnavailableError) as error:
+    except (ValueError, FileNotFoundError, KeyError, *missing_extra) as error:
         print(f"mocap-hierarchy {args.command}: error: {error_message(error)}", file=sys.stderr)
         return 2
     except OSError as error:  # disk full, read-only or not permitted: name the file and keep what is finished

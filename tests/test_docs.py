@@ -184,18 +184,28 @@ def test_slugs_follow_github_and_repeat_with_suffixes():
 def test_model_cards_are_rendered_from_the_shipped_files():
     import hashlib
 
+    from hierarchy.card_markdown import SECTIONS
+    from hierarchy.card_page import card_page
     from hierarchy.decoder import load_decoder
+    from hierarchy.latent_prior import shipped_priors
     from hierarchy.model_card import card_of
     from hierarchy.pretrained import pretrained_decoders
 
     pages = generated_pages.model_pages()
     assert {"synthetic-v3.md", "synthetic-v3-prior.md"} <= set(pages)
-    for name, path in pretrained_decoders().items():
-        page, card = pages[f"{name}.md"], card_of(load_decoder(path))
-        assert card is not None and card["summary"] in page
+    files = {f"{name}.md": path for name, path in pretrained_decoders().items()}
+    files.update({f"{name}-prior.md": path for name, path in shipped_priors().items()})
+    assert set(pages) == set(files)
+    for page_name, path in files.items():
+        page = pages[page_name]
+        assert page == card_page(path, generated_pages.doc_links())  # the renderer of `decoder card`
+        assert re.findall(r"^## (.+)$", page, re.M) == list(SECTIONS)
         assert hashlib.sha256(path.read_bytes()).hexdigest() in page
-        for section in ("Overview", "Intended use", "Inputs and outputs", "Artifacts", "Limitations", "Provenance"):
-            assert f"## {section}" in page
+    for name, path in pretrained_decoders().items():
+        card = card_of(load_decoder(path))
+        assert card is not None and card["summary"] in pages[f"{name}.md"]
+    index = (DOCS / "models" / "index.md").read_text()
+    assert all(f"]({page_name})" in index for page_name in pages)  # the index lists every shipped card
 
 
 def test_configs_reference_refuses_a_field_without_a_meaning(monkeypatch):

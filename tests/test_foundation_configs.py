@@ -10,7 +10,13 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from foundation.config_cli import add_dataclass_arguments, dataclass_from_args, given_fields, parse_field_setting
+from foundation.config_cli import (
+    add_dataclass_arguments,
+    dataclass_flags,
+    dataclass_from_args,
+    given_fields,
+    parse_field_setting,
+)
 from foundation.config_files import (
     ConfigFileError,
     config_from_dict,
@@ -157,3 +163,38 @@ def test_a_nested_block_gets_flat_flags_and_schedules_parse_from_the_command_lin
         parser.parse_args(["--learning-rate", "3e-4@0,1e-4"])  # argparse reports the schedule's error
     assert parse_field_setting(_Job, "learning_rate=3e-4") == ("learning_rate", Schedule.constant(3e-4))
     assert parse_field_setting(_Job, "target_kl=none") == ("target_kl", None)
+
+
+@dataclass(frozen=True)
+class _Switches:
+    """Yes/no settings and an optional one.
+
+    Attributes:
+        job: A nested block.
+        fast: A yes/no setting on by default.
+        masks: Yes/no values.
+        limit: Optional.
+    """
+
+    job: PpoConfig = field(default_factory=PpoConfig)
+    fast: bool = True
+    masks: tuple[bool, ...] = (True,)
+    limit: float | None = None
+
+
+def test_the_flags_of_a_config_parse_back_to_it():
+    job = with_settings(
+        _Job(total_steps=7, noise=Schedule.parse("0.3@0,0.2@2M"), name="a b"),
+        {"learning_rate": "3e-4@0,1e-4@600k", "hidden_layers": (64, 32), "target_kl": 0.02},
+    )
+    flags = dataclass_flags(job)
+    assert flags[flags.index("--hidden-layers") + 1 :][:2] == ["64", "32"]
+    parser = argparse.ArgumentParser()
+    add_dataclass_arguments(parser, _Job)
+    assert dataclass_from_args(_Job, parser.parse_args(flags)) == job
+    assert dataclass_flags(_Job()) == []
+    switches = _Switches(fast=False, masks=(False, True), limit=2.5)
+    assert dataclass_flags(switches) == ["--no-fast", "--masks", "False", "True", "--limit", "2.5"]
+    parser = argparse.ArgumentParser()
+    add_dataclass_arguments(parser, _Switches)
+    assert dataclass_from_args(_Switches, parser.parse_args(dataclass_flags(switches))) == switches

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -200,13 +201,26 @@ class ExpertPolicy(nn.Module):
                 f"expert {expert.root.name} has no {expert.sidecar.name}: it was not trained by mocap-hierarchy. "
                 "Convert it with `load_expert(..., trust_pickle=True)` (or `--trust-pickle`) if you trust its source"
             )
-        if expert.legacy_description.is_file():
-            description, tensors = _read_format_1(expert)
-        else:
-            description, tensors = read_described(
-                expert.sidecar, EXPERT_FORMAT, EXPERT_FORMAT_VERSION, "expert", error=ExpertFilesError
-            )
-        spec = ExpertSpec.from_json(description, str(expert.sidecar))
+        if not expert.legacy_description.is_file():
+            return cls.from_file(expert.sidecar)
+        description, tensors = _read_format_1(expert)
+        return cls._from_described(description, tensors, str(expert.sidecar))
+
+    @classmethod
+    def from_file(cls, path: str | os.PathLike) -> ExpertPolicy:
+        """Reads an ``expert.safetensors`` wherever it lies (format 2; format 1 needs :meth:`load`).
+
+        Raises:
+            ExpertFilesError: No such file, or not an expert file.
+        """
+        description, tensors = read_described(
+            path, EXPERT_FORMAT, EXPERT_FORMAT_VERSION, "expert", error=ExpertFilesError, missing_error=ExpertFilesError
+        )
+        return cls._from_described(description, tensors, str(path))
+
+    @classmethod
+    def _from_described(cls, description: dict, tensors: dict[str, torch.Tensor], where: str) -> ExpertPolicy:
+        spec = ExpertSpec.from_json(description, where)
         keys = sorted(spec.observation_sizes)
         policy = cls(
             spec,

@@ -4,7 +4,10 @@
 
 * ``checkpoint.pt``, ``history.json``, ``tensorboard/`` (see :mod:`distill.trainer`);
 * ``policy.safetensors``: the whole multi-clip policy (encoder + decoder), for evaluation;
-* ``decoder.safetensors``: the frozen decoder file (:mod:`hierarchy.decoder`);
+* ``decoder.safetensors``: the frozen decoder file (:mod:`hierarchy.decoder`), with a model card in its
+  provenance (:func:`decoder_card`: the data, the budget and the command; no wall time, so a card depends only
+  on the run's inputs);
+* ``MODEL_CARD.md``: that card as Markdown (:func:`hierarchy.card_page.card_page` of the decoder file);
 * ``distill.json``: the settings and the outcome.
 """
 
@@ -12,14 +15,20 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import shlex
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 from distill.dataset.reader import RolloutDataset
 from distill.dataset.sampler import SamplerConfig, WindowDataset
 from distill.npmp.config import default_sampler  # defined there (light), used and re-exported here
 from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec
-from distill.trainer import TrainerConfig, TrainingOutcome, train_on_dataset, write_run_summary
+from distill.trainer import DatasetTraining, TrainerConfig, TrainingOutcome, train_on_dataset, write_run_summary
+from foundation.atomic import write_text
+from foundation.config_cli import dataclass_flags
+from hierarchy.card_markdown import CARD_FILE, layers_text
+from hierarchy.card_page import card_page
 
 DECODER_FILE = "decoder.safetensors"
 POLICY_FILE = "policy.safetensors"
@@ -81,9 +90,8 @@ def train_npmp(
         return NpmpPolicy(spec, means["encoder"], stds["encoder"], means["decoder"], stds["decoder"])
 
     settings = {"npmp": asdict(npmp)}
-    run = train_on_dataset(
-        data, out, trainer, sampler, groups, build, settings, (DECODER_FILE, POLICY_FILE), progress, "distilling"
-    )
+    outputs = (DECODER_FILE, POLICY_FILE, CARD_FILE)
+    run = train_on_dataset(data, out, trainer, sampler, groups, build, settings, outputs, progress, "distilling")
     if not run.write:  # under torchrun rank 0 alone writes; a finished run keeps its files (and their SHA-256)
         return DistillResult(out / DECODER_FILE, out / POLICY_FILE, run.outcome)
     facts = {
@@ -99,6 +107,51 @@ def train_npmp(
     policy.cpu().eval()
     policy.spec = dataclasses.replace(policy.spec, provenance=facts)
     policy_path = policy.save(out / POLICY_FILE)
-    decoder_path = policy.export_decoder(**facts).save(out / DECODER_FILE)
+    card = decoder_card(data, out, npmp, trainer, sampler, run)
+    decoder_path = policy.export_decoder(**facts, model_card=card).save(out / DECODER_FILE)
+    write_text(out / CARD_FILE, card_page(decoder_path))
     write_run_summary(out / "distill.json", settings, trainer, sampler, run)
     return DistillResult(decoder_path, policy_path, run.outcome)
+
+
+def decoder_card(
+    data: Any, out: Path, npmp: NpmpConfig, trainer: TrainerConfig, sampler: SamplerConfig, run: DatasetTraining
+) -> dict[str, Any]:
+    """The model card a distillation stores in its decoder file (:mod:`hierarchy.model_card`).
+
+    Everything in it follows from the run's inputs (data, settings, the command), so a resumed run writes
+    the same card as an uninterrupted one; the wall time is in ``distill.json`` (``seconds``, of the call
+    that finished).
+    """
+    single = isinstance(data, str | os.PathLike)
+    flags = [
+        *dataclass_flags(trainer),
+        *dataclass_flags(npmp),
+        *dataclass_flags(sampler, default_sampler(), exclude=("normalize_observations", "actions")),
+    ]
+    command = (
+        ["mocap-hierarchy", "distill", "train", "--data", os.fspath(data), "--out", os.fspath(out)] if single else []
+    )
+    windows = f"batch {trainer.batch_size} windows of {sampler.window} steps ({sampler.weighting} weighting)"
+    encoder, decoder = layers_text(npmp.encoder_layers), layers_text(npmp.decoder_layers)
+    sizes = f"encoder {encoder}, decoder {decoder}, latent {npmp.latent_size}, KL weight {npmp.kl_weight:g}"
+    return {
+        "summary": (
+            f"{decoder} decoder distilled from {run.episodes} rollout episodes of "
+            f"{len(run.snippets)} snippets in {run.outcome.steps:,} optimiser steps"
+        ),
+        "data": {
+            "rollout dataset": os.fspath(data) if single else [os.fspath(part) for part in data],
+            "snippets": run.snippets,
+            "episodes": run.episodes,
+        },
+        "budgets": {
+            "distillation": f"{run.outcome.steps:,} optimiser steps, {windows}; {sizes}",
+            "wall time": "`seconds` in distill.json beside the decoder (of the call that finished the run)",
+        },
+        "commands": [shlex.join([*command, *flags])] if single else [],
+        "notes": [
+            "Not evaluated yet: `mocap-hierarchy distill eval` measures the multi-clip policy against its experts "
+            "(`--json`), and `mocap-hierarchy decoder package --scores` records the scores in the card."
+        ],
+    }

@@ -3,8 +3,9 @@
 * ``reference/cli.md``: every ``mocap-hierarchy`` command, from the real argparse parsers;
 * ``reference/configs.md``: every settings dataclass, field by field (type, default, meaning from the
   class's ``Attributes:`` docstring section);
-* ``models/<name>.md``: one model card per shipped decoder and latent prior, from the JSON card and the
-  description stored inside the file, so the page and the file cannot disagree.
+* ``models/<name>.md``: one model card per shipped decoder and latent prior, rendered from the file by
+  :func:`hierarchy.card_page.card_page` (what ``mocap-hierarchy decoder card`` prints), so the page, the command
+  and the file cannot disagree.
 
 Sphinx writes them before reading the sources (``builder-inited``); the files are ignored by git.
 ``python docs/_ext/generated_pages.py`` writes them without building the site.
@@ -14,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import hashlib
 import importlib
 import inspect
 import os
@@ -214,164 +214,36 @@ def configs_page() -> str:
 # --------------------------------------------------------------------------------------------- model cards
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+def doc_links() -> Any:
+    """How a card page under ``models/`` links the site's pages (a page not in the site yet is named, not linked)."""
+    from hierarchy.card_markdown import DocLinks
+
+    pages = frozenset(str(page.relative_to(DOCS)) for page in DOCS.rglob("*.md"))
+    return DocLinks(prefix="../", pages=pages)
 
 
-def _text(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, list | tuple):
-        return ", ".join(str(item) for item in value)
-    if isinstance(value, dict):
-        return ", ".join(f"{key}: {_text(item)}" for key, item in value.items())
-    return str(value)
+def card_of_file(path: Path) -> str:
+    """The card page of a shipped decoder or prior: what ``mocap-hierarchy decoder card`` prints, with site links.
 
+    Both come from one renderer, :func:`hierarchy.card_page.card_page`.
+    """
+    from hierarchy.card_page import card_page
 
-def decoder_page(name: str, path: Path, prior_path: Path | None) -> str:
-    """The model card of shipped decoder ``name``, from the card and description inside its file."""
-    from hierarchy.decoder import load_decoder
-    from hierarchy.model_card import card_of, scores_markdown
-
-    decoder = load_decoder(path)
-    spec = decoder.spec
-    card = card_of(decoder) or {}
-    provenance = {key: value for key, value in spec.provenance.items() if key != "model_card"}
-    observations = ", ".join(f"`{key}` ({size})" for key, size in spec.observation_sizes.items())
-    prior_line = (
-        f"its latent prior: `{prior_path.relative_to(DOCS.parent)}` ({prior_path.stat().st_size / 1e6:.2f} MB, "
-        f"[card]({name}-prior.md))"
-        if prior_path
-        else "no latent prior ships with it"
-    )
-    lines = [
-        f"# Decoder `{name}`",
-        "",
-        "Generated from the model card stored inside the file "
-        f"(`mocap-hierarchy decoder card {name}` prints the same card).",
-        "",
-        "## Overview",
-        "",
-        card.get("summary", "A frozen low-level decoder."),
-        "",
-        "## Intended use",
-        "",
-        f"A frozen low-level controller for the dm_control CMU humanoid (`{spec.walker}`): a high-level policy "
-        f"chooses a latent `z` every control step and the decoder turns it, with the humanoid's proprioception, into "
-        f'joint position targets. Load it with `load_decoder("{name}")` or `--decoder {name}` on `transfer train`; '
-        "see [a pretrained decoder in your own task](../tutorials/pretrained-decoder.md). It was distilled from "
-        "experts on the built-in synthetic clips, not on motion capture of people: use it to study hierarchical "
-        "control and transfer, not as a model of human motion.",
-        "",
-        "## Training data and budgets",
-        "",
-    ]
-    lines += [f"- **{key}**: {_text(value)}" for key, value in card.get("data", {}).items()]
-    lines += [f"- **{key}**: {_text(value)}" for key, value in card.get("budgets", {}).items()]
-    lines += [
-        "",
-        "## Inputs and outputs",
-        "",
-        f"- **observation** ({spec.observation_size} values, in this order): {observations}",
-        f"- **latent** `z`: {spec.latent_size} values within ±{spec.latent_bound:g}",
-        f"- **action**: {spec.action_size} joint position targets in [{spec.action_low:g}, {spec.action_high:g}]",
-        f"- **walker**: `{spec.walker}`",
-        "- the observation normaliser is stored in the file and applied by the decoder itself",
-        "",
-        "## Artifacts",
-        "",
-        f"- `{path.relative_to(DOCS.parent)}`: {path.stat().st_size / 1e6:.2f} MB, SHA-256 `{_sha256(path)}`",
-        f"- weights' behaviour hash (unchanged by re-packaging the card): `{decoder.behaviour_sha256()}`",
-        f"- {prior_line}",
-        "- format: safetensors with a JSON description, no pickle "
-        "([the decoder file format](../reference/formats/decoder.md))",
-        "",
-        "## Measured scores",
-        "",
-        *(scores_markdown(card) or ["No scores are recorded in this file."]),
-        "",
-        "## Limitations",
-        "",
-        *([f"- {note}" for note in card.get("notes", [])] or ["- None recorded in the card."]),
-        "",
-        "## Provenance",
-        "",
-        *[f"- **{key}**: {_text(value)}" for key, value in provenance.items()],
-        "",
-    ]
-    if card.get("commands"):
-        lines += ["Commands that rebuilt it, in order:", "", "```bash", *card["commands"], "```", ""]
-    return "\n".join(lines)
-
-
-def prior_page(name: str, path: Path) -> str:
-    """The model card of the latent prior shipped with decoder ``name``, from the description inside its file."""
-    from hierarchy.latent_prior import load_latent_prior
-
-    prior = load_latent_prior(path)
-    spec = prior.spec
-    provenance = dict(spec.provenance)
-    lines = [
-        f"# Latent prior of `{name}`",
-        "",
-        "Generated from the description stored inside the file.",
-        "",
-        "## Overview",
-        "",
-        f"A state-conditioned Gaussian over the latent `z` of decoder [`{name}`]({name}.md): given the humanoid's "
-        "proprioception, the latent its multi-clip policy would choose. A high-level policy acting around it "
-        "(`latent_prior=` in Python, `--latent-prior` on the command line) starts from the experts' motions "
-        "instead of from `z = 0`.",
-        "",
-        "## Intended use",
-        "",
-        f"Only with decoder `{name}`: the file stores the behaviour hash of the decoder it was fitted for, and "
-        "loading it beside another decoder is refused. See [the latent prior guide](../guides/latent-prior.md).",
-        "",
-        "## Training data and budgets",
-        "",
-        *[f"- **{key}**: {_text(value)}" for key, value in provenance.items()],
-        "",
-        "## Inputs and outputs",
-        "",
-        f"- **observation**: {spec.observation_size} values, the decoder's observation keys in its order",
-        f"- **output**: the mean of `z` ({spec.latent_size} values)",
-        f"- **network**: MLP {' x '.join(map(str, spec.hidden_layers))}, {spec.activation}",
-        "",
-        "## Artifacts",
-        "",
-        f"- `{path.relative_to(DOCS.parent)}`: {path.stat().st_size / 1e6:.2f} MB, SHA-256 `{_sha256(path)}`",
-        f"- fitted for the decoder whose behaviour hash is `{spec.decoder_behaviour_sha256}`",
-        "",
-        "## Measured scores",
-        "",
-        "The fit's own figures are under *Training data and budgets*; what acting around it does to transfer is "
-        "measured on the [experiment pages](../experiments/index.md).",
-        "",
-        "## Limitations",
-        "",
-        "- Fitted to the multi-clip policy's latents on its training snippets; away from those states its mean is "
-        "an extrapolation.",
-        "",
-        "## Provenance",
-        "",
-        "- fitted with `mocap-hierarchy decoder fit-prior` (the command is in the decoder's card)",
-        "",
-    ]
-    return "\n".join(lines)
+    return card_page(path, doc_links())
 
 
 def model_pages() -> dict[str, str]:
-    """``{file name: page}`` of every shipped decoder and prior."""
+    """``{file name: page}`` of every shipped decoder and prior (``NAME.md``, ``NAME-prior.md``)."""
+    from hierarchy.card_page import card_page_name
     from hierarchy.latent_prior import shipped_priors
     from hierarchy.pretrained import pretrained_decoders
 
     priors = shipped_priors()
     pages = {}
     for name, path in pretrained_decoders().items():
-        pages[f"{name}.md"] = decoder_page(name, path, priors.get(name))
+        pages[card_page_name(name)] = card_of_file(path)
         if name in priors:
-            pages[f"{name}-prior.md"] = prior_page(name, priors[name])
+            pages[card_page_name(name, "prior")] = card_of_file(priors[name])
     return pages
 
 

@@ -14,7 +14,7 @@ DECODER_HELP = "decoder .safetensors file or a shipped decoder's name (`mocap-hi
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``decoder list``, ``info``, ``package``, ``card`` and ``import-mocapact``."""
+    """Registers ``decoder list``, ``info``, ``package``, ``card``, ``import-mocapact`` and ``export``."""
     decoder = subparsers.add_parser(
         "decoder", help="decoder files: list the shipped ones, inspect, package, import MoCapAct's"
     )
@@ -35,9 +35,14 @@ def add_commands(subparsers: LazySubParsers) -> None:
     )
     package.add_argument("--float32", action="store_true", help="keep float32 weights (default: float16)")
     package.set_defaults(handler=_package)
-    card = decoder_commands.add_parser("card", help="write a decoder's model card as Markdown")
-    card.add_argument("file", help=DECODER_HELP)
-    card.add_argument("--out", type=Path, default=None, help="Markdown file (default: print it)")
+    card = decoder_commands.add_parser(
+        "card", help="a model file's card as Markdown (decoder, latent prior or task policy), from the file itself"
+    )
+    card.add_argument("file", help=f"{DECODER_HELP}, a latent prior file or a task policy file")
+    card.add_argument("--prior", action="store_true", help="the card of the latent prior shipped with decoder NAME")
+    card.add_argument(
+        "--out", type=Path, default=None, help="Markdown file, or a folder: MODEL_CARD.md in it (default: print it)"
+    )
     card.set_defaults(handler=_card)
     prior = decoder_commands.add_parser(
         "fit-prior",
@@ -58,6 +63,12 @@ def add_commands(subparsers: LazySubParsers) -> None:
     convert.add_argument("out", type=Path, help="decoder file to write")
     convert.add_argument("--latent-bound", type=float, default=3.0, help="bound of z for high-level policies")
     convert.set_defaults(handler=_import_mocapact)
+    export = decoder_commands.add_parser(
+        "export", help="write the decoder as one ONNX graph (observation, latent -> action) for deployment"
+    )
+    export.add_argument("file", help=DECODER_HELP)
+    export.add_argument("--onnx", type=Path, required=True, help="ONNX file to write (needs the export extra)")
+    export.set_defaults(handler=_export)
 
 
 def _list(args: argparse.Namespace) -> None:
@@ -101,19 +112,26 @@ def _package(args: argparse.Namespace) -> None:
 
 
 def _card(args: argparse.Namespace) -> None:
-    from hierarchy.decoder import load_decoder
-    from hierarchy.model_card import card_markdown, card_of
+    from hierarchy.card_markdown import CARD_FILE
+    from hierarchy.card_page import card_page
 
-    card = card_of(load_decoder(args.file))
-    if card is None:
-        raise ValueError(f"{args.file} has no model card; `mocap-hierarchy decoder package` attaches one")
-    text = card_markdown(card, str(args.file))
+    if args.prior:
+        from hierarchy.latent_prior import resolve_prior, shipped_priors
+
+        source = resolve_prior(args.file)
+        if not source.is_file():
+            shipped = ", ".join(shipped_priors()) or "none"
+            raise FileNotFoundError(f"no latent prior {args.file} (shipped with decoders: {shipped})")
+    else:
+        source = args.file
+    text = card_page(source)
     if args.out is None:
         print(text)
         return
     from foundation.atomic import write_text
 
-    print(f"wrote {write_text(args.out, text)}")
+    out = args.out / CARD_FILE if args.out.is_dir() else args.out
+    print(f"wrote {write_text(out, text)}")
 
 
 def _fit_prior(args: argparse.Namespace) -> None:
@@ -148,4 +166,20 @@ def _import_mocapact(args: argparse.Namespace) -> None:
     print(
         f"wrote {args.out}: {spec.observation_size} observation values over {len(spec.observation_sizes)} keys, "
         f"latent {spec.latent_size}, hidden {list(spec.hidden_layers)}, {spec.action_size} actions"
+    )
+
+
+def _export(args: argparse.Namespace) -> None:
+    from hierarchy.decoder import load_decoder
+    from hierarchy.onnx_export import export_decoder
+    from hierarchy.pretrained import resolve_decoder
+
+    decoder = load_decoder(args.file)
+    written = export_decoder(decoder, args.onnx, source=resolve_decoder(args.file).name)
+    spec = decoder.spec
+    print(written.summary("decoder"))
+    print(
+        f"inputs: observation (batch, {spec.observation_size}), {len(spec.observation_sizes)} keys in the file's "
+        f"order (`decoder info`), and latent (batch, {spec.latent_size}) within +-{spec.latent_bound:g}; output: "
+        f"action (batch, {spec.action_size}) within [{spec.action_low:g}, {spec.action_high:g}]"
     )

@@ -1,4 +1,4 @@
-"""``mocap-hierarchy expert``: train one or many snippet experts, evaluate them."""
+"""``mocap-hierarchy expert``: train one or many snippet experts, evaluate them, export one to ONNX."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ from foundation.config_files import config_to_toml, read_config_file, setting_na
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``expert train``, ``expert train-many``, ``expert eval`` and ``expert convert``."""
+    """Registers ``expert train``, ``train-many``, ``eval``, ``convert`` and ``export``."""
     expert = subparsers.add_parser("expert", help="clip-snippet experts: train, evaluate, train many, convert")
     commands = add_subcommands(expert, dest="expert_command", required=True, metavar="COMMAND")
 
@@ -79,6 +79,15 @@ def add_commands(subparsers: LazySubParsers) -> None:
     convert.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to convert")
     convert.add_argument("--force", action="store_true", help="convert again where our file already exists")
     convert.set_defaults(handler=_convert)
+
+    export = commands.add_parser(
+        "export", help="write an expert's mean action as one ONNX graph (observation -> action) for deployment"
+    )
+    export.add_argument("expert", type=Path, help="an expert directory, or its expert.safetensors")
+    export.add_argument("--onnx", type=Path, required=True, help="ONNX file to write (needs the export extra)")
+    export.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to export")
+    export.add_argument("--trust-pickle", action="store_true", help="convert an expert without our sidecar first")
+    export.set_defaults(handler=_export)
 
 
 _SHARED_WITH_CPU = tuple(
@@ -205,29 +214,27 @@ def _evaluate(args: argparse.Namespace) -> None:
     from distill.experts.evaluation import evaluate_policy
     from distill.experts.files import find_experts
     from distill.experts.loading import load_expert
+    from tasks.tracking.metrics import TERMINATION_NAMES, aggregate, metrics_table
 
     config = dataclass_from_args(EvaluationConfig, args)
     if args.deterministic:
         config = dataclasses.replace(config, action_noise=0.0)
     experts = find_experts(args.experts)  # expert directories or folders of them; each snippet once
     results = []
-    print(
-        f"{'snippet':<28}{'norm. reward':>14}{'norm. length':>14}{'(s.e.)':>9}{'episodes':>10}   init={config.init} "
-        f"noise={config.action_noise}"
-    )
     for snippet, expert in experts.items():
         policy = load_expert(expert.root, trust_pickle=args.trust_pickle, evaluation=args.evaluation)
-        result = evaluate_policy(policy, snippet, config, clips=args.clips, progress=True)
-        results.append(result.to_json())
-        error = result.standard_error("normalized_length")
-        print(
-            f"{snippet:<28}{result.normalized_reward:>14.3f}{result.normalized_length:>14.3f}{error:>9.4f}"
-            f"{config.episodes:>10}"
-        )
+        results.append(evaluate_policy(policy, snippet, config, clips=args.clips, progress=True).to_json())
+    print(
+        f"{config.episodes} episodes per snippet from {config.init} frames, action noise {config.action_noise}, "
+        f"success: reaching the snippet's end without termination by {TERMINATION_NAMES[config.termination]}"
+    )
+    per_snippet = {r["snippet"]: {**r, **r["tracking"]} for r in results}
+    print(metrics_table(per_snippet))
     if args.json:
         from foundation.atomic import write_json
 
-        write_json(args.json, {"config": dataclasses.asdict(config), "results": results})
+        record = {"config": dataclasses.asdict(config), "results": results, "over_snippets": aggregate(per_snippet)}
+        write_json(args.json, record)
         print(f"results written to {args.json}")
     else:
         print(json.dumps({r["snippet"]: [r["normalized_reward"], r["normalized_length"]] for r in results}))
@@ -260,3 +267,28 @@ def _convert(args: argparse.Namespace) -> None:
         print(f"  {snippet}: {reason}", file=sys.stderr)
     if failed:
         sys.exit(1)
+
+
+def _export(args: argparse.Namespace) -> None:
+    from distill.experts.files import ExpertDir
+    from distill.experts.loading import load_expert
+    from distill.experts.onnx_export import expert_observation_sizes, export_expert
+    from distill.experts.policy import ExpertPolicy
+
+    if not args.expert.exists():
+        raise FileNotFoundError(f"{args.expert} does not exist: give an expert directory or its expert.safetensors")
+    if args.expert.is_dir():
+        policy = load_expert(args.expert, trust_pickle=args.trust_pickle, evaluation=args.evaluation)
+        source = str(ExpertDir(args.expert, args.evaluation).sidecar.relative_to(args.expert.parent))
+    else:
+        policy, source = ExpertPolicy.from_file(args.expert), args.expert.name
+    written = export_expert(policy, args.onnx, source=source)
+    sizes = expert_observation_sizes(policy)
+    meaning = (
+        "an offset from the reference's next pose (residual actions)" if policy.residual_actions else "joint targets"
+    )
+    print(written.summary(f"expert {policy.spec.snippet}"))
+    print(
+        f"input: observation (batch, {sum(sizes.values())}), {len(sizes)} keys in sorted order; output: action "
+        f"(batch, {policy.spec.action_size}) within [-1, 1], {meaning}"
+    )

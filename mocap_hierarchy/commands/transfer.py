@@ -1,4 +1,4 @@
-"""``mocap-hierarchy transfer``: high-level PPO on any registered task, and its evaluation."""
+"""``mocap-hierarchy transfer``: high-level PPO on any registered task, its evaluation and ONNX export."""
 
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from mocap_hierarchy.commands.decoder import DECODER_HELP
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``transfer train`` (flags added when it is chosen) and ``transfer eval``."""
+    """Registers ``transfer train`` (flags added when it is chosen), ``transfer eval`` and ``transfer export``."""
     transfer = subparsers.add_parser("transfer", help="high-level PPO on a task, with or without a decoder")
     transfer_commands = add_subcommands(transfer, dest="transfer_command", required=True, metavar="COMMAND")
     transfer_commands.add_lazy_parser("train", _build_train, help="train a task policy (resumes an interrupted run)")
@@ -41,6 +41,12 @@ def add_commands(subparsers: LazySubParsers) -> None:
         "speed along the command over the commanded speed, heading cosine, reward against standing still)",
     )
     evaluate.set_defaults(handler=_evaluate)
+    export = transfer_commands.add_parser(
+        "export", help="write a task policy as one ONNX graph (observation -> action) for deployment"
+    )
+    export.add_argument("policy", type=Path, help="policy.safetensors (or the training folder)")
+    export.add_argument("--onnx", type=Path, required=True, help="ONNX file to write (needs the export extra)")
+    export.set_defaults(handler=_export)
 
 
 def _build_train(parser: argparse.ArgumentParser) -> None:
@@ -132,3 +138,20 @@ def _evaluate_speed(path: Path, args: argparse.Namespace) -> None:
     )
     if args.json:
         write_json(args.json, {"returns": returns, "speed": speed.as_dict()})
+
+
+def _export(args: argparse.Namespace) -> None:
+    from hierarchy.onnx_export import composition, export_task_policy, task_policy_interface
+    from hierarchy.task_policy import load_task_policy
+    from hierarchy.transfer import POLICY_FILE
+
+    path = file_in_folder(args.policy, POLICY_FILE)
+    policy = load_task_policy(path)
+    written = export_task_policy(policy, args.onnx, source=path.name)
+    (observation,), (action,) = task_policy_interface(policy).values()
+    print(written.summary("task policy"))
+    print(
+        f"input: observation {tuple(observation['shape'])}, {len(observation['keys'])} keys in the policy's order; "
+        f"output: action {tuple(action['shape'])} within [{action['low']:g}, {action['high']:g}], {action['meaning']}"
+    )
+    print(composition(policy))

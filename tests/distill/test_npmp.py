@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 import pytest
@@ -106,24 +107,56 @@ def test_torchrun_ddp_on_two_cpu_processes(rollout_dir, tmp_path):
     assert load_decoder(out / "decoder.safetensors").spec.provenance["steps"] == 6
 
 
+def test_distillation_writes_its_model_card_inside_the_decoder_file_and_beside_it(distilled, rollout_dir):
+    import shlex
+
+    from distill.dataset.reader import RolloutDataset
+    from distill.npmp.config import default_sampler as cli_sampler
+    from distill.trainer import TrainerConfig as CliTrainer
+    from foundation.config_cli import dataclass_from_args
+    from hierarchy.card_page import card_page
+    from hierarchy.model_card import card_of
+    from mocap_hierarchy.cli import build_parser
+
+    result, out = distilled
+    card = card_of(load_decoder(result.decoder))
+    assert card is not None
+    assert (out / "MODEL_CARD.md").read_text() == card_page(result.decoder)  # the Markdown is the file's card
+    dataset = RolloutDataset(rollout_dir)
+    assert card["data"]["snippets"] == dataset.snippets() and card["data"]["episodes"] == len(dataset.episodes)
+    dataset.close()
+    assert f"{FAST.steps} optimiser steps" in card["budgets"]["distillation"]
+    command = shlex.split(card["commands"][0])
+    assert command[:3] == ["mocap-hierarchy", "distill", "train"]
+    args = build_parser().parse_args(command[1:])  # the command rebuilds the same settings
+    assert (args.data, args.out) == (rollout_dir, out)
+    assert dataclass_from_args(NpmpConfig, args) == SMALL and dataclass_from_args(CliTrainer, args) == FAST
+    assert dataclass_from_args(type(SAMPLER), args, base=cli_sampler()) == dataclasses.replace(
+        SAMPLER, normalize_observations=True, actions="mean"
+    )
+
+
 def test_rerunning_a_finished_distillation_keeps_the_decoder_file(distilled, rollout_dir):
     from foundation.fingerprints import file_sha256
 
     result, out = distilled
-    before = file_sha256(result.decoder)
+    before = file_sha256(result.decoder), file_sha256(out / "MODEL_CARD.md")
     again = train_npmp(rollout_dir, out, SMALL, FAST, SAMPLER, progress=False)
-    assert again.outcome.already_finished and file_sha256(again.decoder) == before
+    assert again.outcome.already_finished and (file_sha256(again.decoder), file_sha256(out / "MODEL_CARD.md")) == before
 
 
 def test_same_settings_train_the_same_decoder(rollout_dir, tmp_path):
     short = dataclasses.replace(FAST, steps=10, checkpoint_every=10)
-    decoders = []
+    decoders, cards = [], []
     for run in range(2):
         torch.randn(3 + run)  # whatever the global generator did before, the trainer's seed decides
         result = train_npmp(rollout_dir, tmp_path / str(run), SMALL, short, SAMPLER, progress=False)
         decoders.append(load_decoder(result.decoder).state_dict())
+        card = load_decoder(result.decoder).spec.provenance["model_card"]
+        cards.append(json.loads(json.dumps(card).replace(str(tmp_path / str(run)), "OUT")))
     for name, value in decoders[0].items():
         assert torch.equal(value, decoders[1][name]), name
+    assert cards[0] == cards[1]  # the card holds no wall time: the same inputs, the same card
 
 
 def test_latent_prior_regression_learns_a_known_map():

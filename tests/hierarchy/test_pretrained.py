@@ -11,7 +11,8 @@ import torch
 import hierarchy.pretrained as pretrained
 import tasks
 from hierarchy import DecoderFileError, load_decoder
-from hierarchy.model_card import action_difference, card_markdown, card_of, package_decoder
+from hierarchy.card_page import card_page
+from hierarchy.model_card import action_difference, card_of, package_decoder
 from hierarchy.transfer import evaluate_transfer, train_transfer
 from mocap_hierarchy.cli import main
 
@@ -77,8 +78,8 @@ def test_float16_file_is_half_the_size_and_acts_alike(tmp_path):
         load_decoder(source).save(tmp_path / "x.safetensors", torch.bfloat16)
 
 
-def test_card_markdown_has_every_score_and_command():
-    text = card_markdown(CARD)
+def test_card_page_has_every_score_and_command(shipped):
+    text = card_page(shipped)
     assert "# Decoder `tiny-v1`" in text
     assert "| SYN_a-0-10 | 0.500 | 0.900 | 0.400 | 0.800 | 0.800 |" in text
     assert "reward **0.800**" in text
@@ -91,7 +92,7 @@ def test_decoder_commands_list_info_and_card(shipped, tmp_path, capsys):
     main(["decoder", "info", "tiny-v1"])
     assert '"summary": "a test decoder"' in capsys.readouterr().out
     main(["decoder", "card", "tiny-v1", "--out", str(tmp_path / "card.md")])
-    assert (tmp_path / "card.md").read_text() == card_markdown(CARD, "tiny-v1")
+    assert (tmp_path / "card.md").read_text() == card_page("tiny-v1")
 
 
 def test_a_policy_on_a_shipped_decoder_finds_it_by_name_after_the_folder_moves(shipped, tmp_path, monkeypatch):

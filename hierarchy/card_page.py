@@ -1,0 +1,395 @@
+"""The one renderer of model cards: a model file in, a Markdown page of eight sections out.
+
+``mocap-hierarchy decoder card``, the documentation site's model pages and the
+``MODEL_CARD.md`` that ``distill train`` writes beside its decoder all call
+:func:`card_page`, so the three cannot disagree. A page is made from the file
+alone: the model card JSON stored in its description (:mod:`hierarchy.model_card`;
+any kind of file may carry one under ``provenance["model_card"]``) and the rest of
+its description (spec and provenance), its size and hashes. A shipped file also
+names its shipped companion (a decoder's latent prior, a prior's decoder).
+
+Each kind of file has a builder, chosen by the file's format: decoders, latent
+priors and task policies are built here; :func:`register_card_builder` adds one
+for another format (expert policies, say) from a package above this one.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import hierarchy.pretrained as pretrained
+from foundation.interfaces import flat_observation_port, vector_port
+from hierarchy.card_markdown import (
+    WALKER,
+    CardBuilder,
+    CardContext,
+    CardPage,
+    DocLinks,
+    FileFacts,
+    artifact_lines,
+    bullets,
+    interface_lines,
+    layers_text,
+    opening_line,
+    provenance_lines,
+    read_file_facts,
+    runtime_lines,
+    scores_markdown,
+    size_text,
+)
+from hierarchy.decoder import DECODER_FORMAT, DecoderSpec, load_decoder
+from hierarchy.latent_prior import PRIOR_FORMAT, shipped_prior_name, shipped_priors
+from hierarchy.model_card import CARD_KEY, ModelCardError, check_card
+
+TASK_POLICY_FORMAT = "mocap_hierarchy.task_policy"
+"""``hierarchy.task_policy.TASK_POLICY_FORMAT``, named here so rendering a card loads no simulator (a test keeps
+the two equal)."""
+
+
+def card_page(path: str | os.PathLike, links: DocLinks | None = None) -> str:
+    """The model card of a model file (decoder, latent prior, task policy) as Markdown, in the eight sections.
+
+    Args:
+        path: The file; a shipped decoder's name also works.
+        links: How the page refers to the documentation (default: by path, for reading outside the site).
+
+    Raises:
+        FileNotFoundError: No such file.
+        ModelCardError: Not a model file, a format without a card builder, or a card of the wrong types.
+    """
+    return model_card(path, links).markdown()
+
+
+def model_card(path: str | os.PathLike, links: DocLinks | None = None) -> CardPage:
+    """The :class:`CardPage` of :func:`card_page` (its sections as lines)."""
+    facts = read_file_facts(pretrained.resolve_decoder(path))
+    builder = CARD_BUILDERS.get(facts.file_format)
+    if builder is None:
+        known = ", ".join(CARD_BUILDERS)
+        raise ModelCardError(f"{facts.path} is a {facts.file_format!r} file; model cards are built for: {known}")
+    return builder(_context(facts, links or DocLinks()))
+
+
+def register_card_builder(file_format: str, builder: CardBuilder) -> None:
+    """Makes :func:`card_page` build the cards of files of ``file_format`` with ``builder``."""
+    CARD_BUILDERS[file_format] = builder
+
+
+def card_page_name(name: str, kind: str = "decoder") -> str:
+    """The documentation page of shipped decoder ``name``'s card (``kind`` ``prior``: of its latent prior)."""
+    return f"{name}-prior.md" if kind == "prior" else f"{name}.md"
+
+
+def _context(facts: FileFacts, links: DocLinks) -> CardContext:
+    path = facts.path
+    provenance = facts.description.get("provenance", {})
+    card = check_card(provenance.get(CARD_KEY, {}), str(path)) if isinstance(provenance, dict) else {}
+    shipped, prior = pretrained.pretrained_name(path), False
+    if shipped is None and facts.file_format == PRIOR_FORMAT:
+        shipped, prior = shipped_prior_name(path), True
+    if shipped is not None:
+        display = f"hierarchy/pretrained/{path.resolve().relative_to(pretrained.PRETRAINED_FOLDER)}"
+        command = f"mocap-hierarchy decoder card {shipped}{' --prior' if prior else ''}"
+        return CardContext(facts, card, shipped, display, shipped, command, links)
+    return CardContext(facts, card, None, path.name, path.name, f"mocap-hierarchy decoder card {path.name}", links)
+
+
+# ----------------------------------------------------------------------------------------------- decoders
+
+
+def decoder_card(context: CardContext) -> CardPage:
+    """The card of a decoder file (:mod:`hierarchy.decoder`)."""
+    facts, card, links = context.facts, context.card, context.links
+    spec = DecoderSpec.from_json(facts.description, str(facts.path))
+    decoder = load_decoder(facts.path)
+    name = card.get("name", context.shipped or context.source)
+    network = (
+        f"an MLP of {layers_text(spec.hidden_layers)} ({spec.activation}{', layer norm' if spec.layer_norm else ''})"
+    )
+    weights = facts.dtype_of("net.")
+    widened = " (widened to float32 on loading)" if weights != "float32" else ""
+    overview = [
+        card.get("summary", "A frozen low-level decoder."),
+        "",
+        f"A frozen decoder for the `{spec.walker}` walker: {network} that maps {spec.observation_size} observation "
+        f"values and a latent `z` of {spec.latent_size} values to {spec.action_size} joint position targets; "
+        f"{facts.parameters('net.'):,} parameters.",
+    ]
+    tutorial = links.page("a pretrained decoder in your own task", "tutorials/pretrained-decoder.md")
+    intended = card.get("intended_use") or (
+        "A frozen low-level controller for transfer on the CMU humanoid in simulation: a high-level policy (PPO in "
+        "`transfer train`, or your own) chooses `z` every control step and the decoder turns it, with the humanoid's "
+        f'proprioception, into joint position targets. Load it with `load_decoder("{context.source}")` or '
+        f"`--decoder {context.source}`; see {tutorial}. "
+        "For research on hierarchical control: not a model of human motion, and not meant for a real robot."
+    )
+    training = []
+    if card.get("data"):
+        training += ["### Data", "", *bullets(card["data"]), ""]
+    if card.get("budgets"):
+        training += ["### Budgets", "", *bullets(card["budgets"]), ""]
+    if not training:
+        holds = "Its model card records no data or budgets" if card else "The file carries no model card"
+        training += [f"{holds}; its training facts are under Provenance.", ""]
+    training += [
+        "### Scores",
+        "",
+        *(
+            scores_markdown(card)
+            or [
+                "No scores are recorded in this file (`mocap-hierarchy distill eval --json` measures them, "
+                "`mocap-hierarchy decoder package --scores` records them in the card)."
+            ]
+        ),
+    ]
+    inputs = [
+        *interface_lines(spec.interface()),
+        "",
+        "Observations go in raw: the normaliser (each value's dataset mean and standard deviation) is stored in the "
+        "file and applied by the decoder; `decoder.flatten(observations)` puts a task's observations in this order.",
+    ]
+    artifacts = [
+        *artifact_lines(context, f"`net.*` {weights}{widened}, normaliser {facts.dtype_of('observation_')}"),
+        f"- **behaviour SHA-256** (weights, normaliser and spec, not the card: re-packaging keeps it): "
+        f"`{decoder.behaviour_sha256()}`",
+        f"- **latent prior**: {_companion_prior(context, decoder.behaviour_sha256())}",
+        f"- the file format: {links.page('the decoder file', 'reference/formats/decoder.md')}",
+    ]
+    runtime = [
+        *runtime_lines("`hierarchy.load_decoder`", spec.walker),
+        f"- **Environments**: `hierarchy.LatentActionEnv` drives any of the library's tasks through it "
+        f"(`transfer train --decoder {context.source}`).",
+        f"- **ONNX**: `mocap-hierarchy decoder export {context.source} --onnx OUT.onnx` writes it for ONNX Runtime "
+        f"(the `export` extra); see {links.page('deployment', 'guides/deployment.md')}.",
+    ]
+    limitations = [f"- {note}" for note in card.get("notes", [])]
+    limitations += [
+        f"- It reads exactly the {spec.observation_size} observation values above, in that order: "
+        "`check_observations` refuses an environment that lacks a key or gives another size.",
+        f"- It was trained for latents within ±{spec.latent_bound:g}; it does not clip `z`, and beyond the bound its "
+        "actions are extrapolation.",
+    ]
+    if weights == "float16":
+        limitations.append(
+            "- Its weights are stored as float16: its actions differ slightly from those of the float32 decoder it "
+            "was packaged from (`mocap-hierarchy decoder package` prints the largest difference)."
+        )
+    sections = {
+        "Overview": overview,
+        "Intended use": [intended],
+        "Training": training,
+        "Inputs and outputs": inputs,
+        "Artifacts": artifacts,
+        "Runtime support": runtime,
+        "Limitations": limitations,
+        "Provenance": provenance_lines(context, "The facts the command that wrote the file recorded in it:"),
+    }
+    return CardPage(f"Decoder `{name}`", opening_line(context), sections)
+
+
+def _companion_prior(context: CardContext, behaviour: str) -> str:
+    prior = shipped_priors().get(context.shipped or "")
+    if prior is None:
+        return "none is shipped with it (`mocap-hierarchy decoder fit-prior` fits one)"
+    facts = read_file_facts(prior)
+    fits = facts.description.get("decoder_behaviour_sha256") == behaviour
+    card = context.links.card("its card", card_page_name(str(context.shipped), "prior"), _prior_command(context))
+    return (
+        f"`hierarchy/pretrained/priors/{prior.name}`, {size_text(facts.size)}, SHA-256 `{facts.sha256}`, "
+        f"{'fitted for this decoder (behaviour SHA-256 equal)' if fits else 'fitted for other weights'}; {card}"
+    )
+
+
+def _prior_command(context: CardContext) -> str:
+    return f"mocap-hierarchy decoder card {context.shipped} --prior"
+
+
+# ----------------------------------------------------------------------------------------------- latent priors
+
+
+def prior_card(context: CardContext) -> CardPage:
+    """The card of a latent prior file (:mod:`hierarchy.latent_prior`)."""
+    facts, card, links = context.facts, context.card, context.links
+    description = facts.description
+    sizes = {str(k): int(v) for k, v in description.get("observation_sizes", {}).items()}
+    latent_size, hidden = int(description.get("latent_size", 0)), description.get("hidden_layers", [])
+    provenance = context.provenance
+    decoder = context.shipped
+    decoder_text = (
+        links.card(f"`{decoder}`", card_page_name(decoder), f"mocap-hierarchy decoder card {decoder}")
+        if decoder
+        else "the decoder whose behaviour SHA-256 is under Artifacts"
+    )
+    overview = [
+        card.get("summary", f"The latent prior of decoder {decoder_text}."),
+        "",
+        f"A frozen state-conditioned latent prior `mu(s)`: an MLP of {layers_text(hidden)} "
+        f"({description.get('activation', 'elu')}) from the decoder's {sum(sizes.values())} observation values to "
+        f"the mean of its {latent_size}-value latent; {facts.parameters('net.'):,} parameters. It was fitted to the "
+        "latents the multi-clip policy's encoder chose in each state.",
+    ]
+    guide = links.page("the latent prior guide", "guides/latent-prior.md")
+    intended = card.get("intended_use") or (
+        f"Beneath a high-level policy on decoder {decoder_text}: with a prior, the latent-action environments read "
+        "the policy's action as a residual, `z = mu(s) + a` (`latent_prior=` in Python, "
+        f"`--latent-prior {decoder or 'FILE'}` on the command line), so training starts from the motions of the "
+        f"training clips instead of from `z = 0`; see {guide}. "
+        "Only with the decoder it was fitted for; for research in simulation."
+    )
+    fit = provenance.get("fit", {})
+    training = [
+        *bullets({k: provenance[k] for k in ("snippets", "samples") if k in provenance}),
+        *bullets({f"fit: {k}": v for k, v in fit.items()} if isinstance(fit, dict) else {"fit": fit}),
+        *bullets({"fitting settings": provenance["config"]} if "config" in provenance else {}),
+    ] or ["The file records no training facts."]
+    if isinstance(fit, dict) and "explained" in fit:
+        training += ["", f"The prior explains {fit['explained']:.0%} of the latents' held-out variance."]
+    interface = {
+        "inputs": [flat_observation_port(sizes)],
+        "outputs": [vector_port("latent_mean", latent_size, values="the mean of `z`")],
+    }
+    inputs = [
+        *interface_lines(interface),
+        "",
+        "Observations go in raw: the decoder's own normaliser is copied into the file and applied by the prior.",
+    ]
+    behaviour = description.get("decoder_behaviour_sha256", "")
+    artifacts = [
+        *artifact_lines(context, f"`net.*` {facts.dtype_of('net.')}, normaliser {facts.dtype_of('observation_')}"),
+        f"- **decoder**: behaviour SHA-256 `{behaviour}`{_decoder_check(decoder, behaviour)}",
+        f"- the file format: {links.page('the latent prior file', 'reference/formats/prior.md')}",
+    ]
+    runtime = [
+        *runtime_lines("`hierarchy.load_latent_prior`", WALKER),
+        "- **Environments**: `hierarchy.LatentActionEnv(env, decoder, prior=prior)`, "
+        f"`transfer train --latent-prior {decoder or 'FILE'}`.",
+    ]
+    limitations = [f"- {note}" for note in card.get("notes", [])]
+    limitations += [
+        "- It was fitted on the states of its training snippets: away from them its mean is an extrapolation.",
+        "- The file holds the mean only, no spread around it.",
+        "- Another decoder is refused (`check_fits` compares the behaviour SHA-256), even one of the same "
+        "architecture.",
+    ]
+    sections = {
+        "Overview": overview,
+        "Intended use": [intended],
+        "Training": training,
+        "Inputs and outputs": inputs,
+        "Artifacts": artifacts,
+        "Runtime support": runtime,
+        "Limitations": limitations,
+        "Provenance": provenance_lines(
+            context,
+            "Fitted with `mocap-hierarchy decoder fit-prior` (its settings and outcome are under Training).",
+            PRIOR_TRAINING_FACTS,
+            context.card.get("commands") or _fit_commands(decoder),
+        ),
+    }
+    title = f"Latent prior of `{decoder}`" if decoder else f"Latent prior `{context.display}`"
+    return CardPage(title, opening_line(context), sections)
+
+
+PRIOR_TRAINING_FACTS = ("snippets", "samples", "fit", "config")
+"""The provenance facts of a prior file that its card shows under Training."""
+
+
+def _fit_commands(decoder: str | None) -> list[str]:
+    """The ``decoder fit-prior`` lines among the commands of shipped decoder ``decoder``'s card."""
+    if decoder is None or decoder not in pretrained.pretrained_decoders():
+        return []
+    card = check_card(load_decoder(decoder).spec.provenance.get(CARD_KEY, {}), decoder)
+    return [command for command in card.get("commands", []) if "decoder fit-prior" in command]
+
+
+def _decoder_check(decoder: str | None, behaviour: str) -> str:
+    if decoder is None or decoder not in pretrained.pretrained_decoders():
+        return ""
+    equal = load_decoder(decoder).behaviour_sha256() == behaviour
+    return f", {'that of' if equal else 'not that of'} the shipped decoder `{decoder}`"
+
+
+# ----------------------------------------------------------------------------------------------- task policies
+
+
+def task_policy_card(context: CardContext) -> CardPage:
+    """The card of a task policy file (:mod:`hierarchy.task_policy`), from its description."""
+    facts, card, links = context.facts, context.card, context.links
+    description = facts.description
+    task, decoder = description.get("task", "?"), description.get("decoder") or None
+    sizes = {str(k): int(v) for k, v in description.get("observation_sizes", {}).items()}
+    action_size = int(description.get("action_size", 0))
+    low, high = float(description.get("action_low", -1.0)), float(description.get("action_high", 1.0))
+    if decoder:
+        decoder_name = decoder.get("name") or Path(str(decoder.get("path", "?"))).name
+        acts_on = f"latents of the decoder `{decoder_name}`"
+    else:
+        acts_on = "joint targets directly"
+    parameters = facts.parameters("policy_net.") + facts.parameters("action_net.")
+    overview = [
+        card.get("summary", f"A high-level policy for the task `{task}`."),
+        "",
+        f"A frozen task policy: a tanh MLP of {layers_text(description.get('hidden_layers', []))} from "
+        f"{sum(sizes.values())} observation values to {action_size} actions, {acts_on}; {parameters:,} parameters. "
+        "It acts deterministically (the mean action).",
+    ]
+    intended = card.get("intended_use") or (
+        f"Acting in the task `{task}` with the settings it was trained under, to evaluate or record it "
+        "(`mocap-hierarchy transfer eval`, `mocap-hierarchy record`); for research in simulation."
+    )
+    provenance = context.provenance
+    overrides = description.get("task_overrides", {})
+    training = bullets({"task": task, "task settings changed": overrides or "none"})
+    training += bullets({k: provenance[k] for k in TASK_POLICY_TRAINING_FACTS if k in provenance})
+    interface = {
+        "inputs": [flat_observation_port(sizes)],
+        "outputs": [vector_port("action", action_size, low=low, high=high)],
+    }
+    inputs = [
+        *interface_lines(interface),
+        "",
+        "Observations go in raw: their running mean and variance are stored in the file; normalised values are "
+        f"clipped to ±{float(description.get('obs_clip', 0.0)):g}.",
+    ]
+    weights = f"`policy_net.*`, `action_net.*` {facts.dtype_of('policy_net.')}, normaliser {facts.dtype_of('obs_')}"
+    artifacts = artifact_lines(context, weights)
+    if decoder:
+        artifacts.append(f"- **decoder**: {_inline({k: v for k, v in decoder.items() if v is not None})}")
+    artifacts.append(f"- the file format: {links.page('the policy file', 'reference/formats/policy.md')}")
+    limitations = [f"- {note}" for note in card.get("notes", [])]
+    limitations.append(f"- Trained and measured on `{task}` only, with the settings above.")
+    if decoder:
+        limitations.append(
+            "- It needs the decoder it was trained on: loading compares the decoder's SHA-256 or behaviour SHA-256."
+        )
+    sections = {
+        "Overview": overview,
+        "Intended use": [intended],
+        "Training": training,
+        "Inputs and outputs": inputs,
+        "Artifacts": artifacts,
+        "Runtime support": runtime_lines("`hierarchy.load_task_policy`", WALKER, light=False),
+        "Limitations": limitations,
+        "Provenance": provenance_lines(
+            context, "Written by `mocap-hierarchy transfer train`.", TASK_POLICY_TRAINING_FACTS
+        ),
+    }
+    return CardPage(f"Task policy `{context.display}`", opening_line(context), sections)
+
+
+TASK_POLICY_TRAINING_FACTS = ("steps", "config")
+"""The provenance facts of a task policy file that its card shows under Training."""
+
+
+def _inline(facts: dict[str, Any]) -> str:
+    return "; ".join(line[2:] for line in bullets(facts))
+
+
+CARD_BUILDERS: dict[str, CardBuilder] = {
+    DECODER_FORMAT: decoder_card,
+    PRIOR_FORMAT: prior_card,
+    TASK_POLICY_FORMAT: task_policy_card,
+}
+"""The card builder of each file format (:func:`register_card_builder` adds one)."""
