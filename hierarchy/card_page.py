@@ -21,6 +21,7 @@ from typing import Any
 
 import hierarchy.pretrained as pretrained
 from foundation.interfaces import flat_observation_port, vector_port
+from foundation.onnx_files import ONNX_OPSET
 from hierarchy.card_markdown import (
     WALKER,
     CardBuilder,
@@ -161,7 +162,8 @@ def decoder_card(context: CardContext) -> CardPage:
         *runtime_lines("`hierarchy.load_decoder`", spec.walker),
         f"- **Environments**: `hierarchy.LatentActionEnv` drives any of the library's tasks through it "
         f"(`transfer train --decoder {context.source}`).",
-        f"- **ONNX**: `mocap-hierarchy decoder export {context.source} --onnx OUT.onnx` writes it for ONNX Runtime "
+        f"- **ONNX**: `mocap-hierarchy decoder export {context.source} --onnx OUT.onnx` writes it as one ONNX graph "
+        f"(opset {ONNX_OPSET}, normaliser and bounds inside, this interface in its metadata) for ONNX Runtime "
         f"(the `export` extra); see {links.page('deployment', 'guides/deployment.md')}.",
     ]
     limitations = [f"- {note}" for note in card.get("notes", [])]
