@@ -43,9 +43,24 @@ def _rollout(args: argparse.Namespace) -> None:
                 rollout_clip(**job.kwargs, progress=True)
         print(f"{len(jobs)} clip files in {args.out} ({sum(j.done for j in jobs)} were already complete)")
         print(f"MoCapAct's dataset metrics: {write_dataset_metrics(args.out)}")
+        _print_expert_scores(args.out)
         return
     reports = run_jobs(jobs, workers=args.workers, ray_address=args.ray)
     print(summarise(reports))
     if any(r.status == "failed" for r in reports):
         sys.exit(1)
     print(f"MoCapAct's dataset metrics: {write_dataset_metrics(args.out)}")
+    _print_expert_scores(args.out)
+
+
+def _print_expert_scores(folder: Path) -> None:
+    """The experts' scores and tracking metrics over the dataset's episodes from random frames, per snippet."""
+    from distill.dataset.reader import RolloutDataset
+    from tasks.tracking.metrics import metrics_table
+
+    dataset = RolloutDataset(folder)
+    try:
+        print("the experts over the dataset's episodes from random frames (with the rollouts' action noise):")
+        print(metrics_table(dataset.expert_metrics("random")))
+    finally:
+        dataset.close()

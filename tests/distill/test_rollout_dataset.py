@@ -286,7 +286,9 @@ def test_rollout_command_writes_the_metrics(trained_expert, tmp_path, capsys):
     out = tmp_path / "rollouts"
     args = ["rollout", "--experts", str(experts), "--out", str(out), "--n-start", "1", "--n-rsi", "1", "--n-envs", "2"]
     assert main(args) == 0
-    assert "dataset_metrics.npz" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "dataset_metrics.npz" in printed
+    assert "G-MPJPE (mm)" in printed and trained_expert.name in printed.split("G-MPJPE (mm)")[-1]
     metrics = np.load(out / "dataset_metrics.npz", allow_pickle=True)
     assert list(metrics["values"].item()) == [trained_expert.name]
 
