@@ -17,6 +17,7 @@ from typing import Any
 
 from foundation.fingerprints import file_sha256
 from hierarchy.model_card import CARD_KEY, ModelCardError
+from tasks.tracking.metrics import TRACKING_METRICS
 
 SECTIONS = (
     "Overview",
@@ -357,6 +358,25 @@ def scores_markdown(card: Mapping[str, Any]) -> list[str]:
             f"reward **{_number(fraction.get('normalized_reward'))}**, "
             f"length **{_number(fraction.get('normalized_length'))}**.",
         ]
+    return [*lines, "", *_tracking_lines(policy.get("snippets", {}))]
+
+
+def _tracking_lines(snippets: Mapping[str, Any]) -> list[str]:
+    """The multi-clip policy's tracking metrics per snippet, where its evaluation measured them (since 2026-11-26)."""
+    measured = {name: row for name, row in snippets.items() if isinstance(row, Mapping) and "success" in row}
+    if not measured:
+        return []
+    lines = [
+        "The multi-clip policy's tracking metrics over the same episodes (success: the snippet's end reached; "
+        "errors of the 31 tracked bodies):",
+        "",
+        "| snippet | success | G-MPJPE (mm) | MPJPE (mm) | vel. error (mm/step) | acc. error (mm/step²) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name, row in measured.items():
+        errors = [row.get(key) for key in TRACKING_METRICS[1:]]
+        cells = " | ".join("-" if value is None else f"{value:.1f}" for value in errors)
+        lines.append(f"| {name} | {_number(row.get('success'))} | {cells} |")
     return [*lines, ""]
 
 

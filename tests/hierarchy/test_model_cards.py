@@ -13,7 +13,7 @@ import pytest
 
 from foundation.fingerprints import file_sha256
 from hierarchy import load_decoder, load_latent_prior
-from hierarchy.card_markdown import CARD_FILE, SECTIONS, TESTED_WITH, DocLinks
+from hierarchy.card_markdown import CARD_FILE, SECTIONS, TESTED_WITH, DocLinks, scores_markdown
 from hierarchy.card_page import TASK_POLICY_FORMAT, card_page, model_card
 from hierarchy.latent_prior import shipped_priors
 from hierarchy.model_card import ModelCardError, card_of, check_card, package_decoder
@@ -172,3 +172,15 @@ def test_the_runtime_versions_on_the_cards_are_the_pinned_ones():
     pins = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["dependencies"]
     assert f"mujoco=={TESTED_WITH['MuJoCo']}" in pins and f"dm-control=={TESTED_WITH['dm_control']}" in pins
     assert any(pin.startswith(f"torch>={TESTED_WITH['torch']}") for pin in pins)
+
+
+def test_scores_show_the_multi_clip_policys_tracking_metrics_where_its_evaluation_measured_them():
+    measured = {"normalized_reward": 0.4, "normalized_length": 0.8, "success": 0.25, "global_position_error_mm": 41.25}
+    card = {
+        "experts": {"SYN_a-0-10": {"normalized_reward": 0.5, "normalized_length": 0.9}},
+        "multi_clip": {"snippets": {"SYN_a-0-10": measured}},
+    }
+    lines = scores_markdown(card)
+    assert "| SYN_a-0-10 | 0.250 | 41.2 | - | - | - |" in lines  # errors it lacks print as -
+    before = {**card, "multi_clip": {"snippets": {"SYN_a-0-10": {"normalized_reward": 0.4, "normalized_length": 0.8}}}}
+    assert not any("G-MPJPE" in line for line in scores_markdown(before))  # evaluations from before the metrics
