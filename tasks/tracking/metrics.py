@@ -93,25 +93,28 @@ class EpisodeTrackingErrors:
 
     def __init__(self, offsets: np.ndarray) -> None:
         self._previous = np.asarray(offsets, dtype=np.float64)
-        self._before_previous: np.ndarray | None = None
+        self._previous_velocity: np.ndarray | None = None
         self.steps = 0
-        self.sums = dict.fromkeys(TRACKING_METRICS[1:], 0.0)
+        self._sums = np.zeros(4)  # global, local, velocity, acceleration (metres)
 
     def add(self, offsets: np.ndarray, root_offset: np.ndarray) -> float:
         """Adds a step's body offsets ``e_t`` and root offset ``q_t - s_t``; returns its global error (m)."""
         offsets = np.asarray(offsets, dtype=np.float64)
         velocity = offsets - self._previous
-        global_error = float(np.linalg.norm(offsets, axis=-1).mean())
-        sums = self.sums
-        sums["global_position_error_mm"] += global_error
-        sums["local_position_error_mm"] += float(np.linalg.norm(offsets - root_offset, axis=-1).mean())
-        sums["velocity_error_mm"] += float(np.linalg.norm(velocity, axis=-1).mean())
-        if self._before_previous is not None:
-            acceleration = velocity - (self._previous - self._before_previous)
-            sums["acceleration_error_mm"] += float(np.linalg.norm(acceleration, axis=-1).mean())
-        self._before_previous, self._previous = self._previous, offsets
+        changes = velocity if self._previous_velocity is None else velocity - self._previous_velocity
+        stacked = np.stack((offsets, offsets - root_offset, velocity, changes))  # one vectorised pass (~10 us)
+        errors = np.sqrt(np.einsum("kbi,kbi->kb", stacked, stacked)).mean(axis=1)
+        if self._previous_velocity is None:
+            errors[3] = 0.0  # no acceleration before the second step
+        self._sums += errors
+        self._previous, self._previous_velocity = offsets, velocity
         self.steps += 1
-        return global_error
+        return float(errors[0])
+
+    @property
+    def sums(self) -> dict[str, float]:
+        """The summed per-step errors (metres) by metric name."""
+        return dict(zip(TRACKING_METRICS[1:], self._sums.tolist(), strict=True))
 
     def summary(self, success: bool) -> dict[str, float]:
         """The episode's metrics: ``success`` (1.0 or 0.0) and the mean errors in millimetres (NaN without steps)."""
