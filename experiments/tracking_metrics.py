@@ -2,12 +2,13 @@
 
 Question: where do the library's trackers stand in the figures motion-tracking papers use? Each source
 (open-loop playback of the reference as the no-learning baseline, snippet experts, a multi-clip policy)
-is evaluated under two protocols on the same snippets:
+is evaluated under three protocols on the same snippets:
 
 * ``phc``: PHC's evaluation: the deterministic policy from each snippet's first frame, episodes ending
   when the tracked bodies' mean distance from the reference exceeds 0.5 m;
 * ``mocapact``: the paper's: random starts (the last 30 frames excluded), action noise 0.1, episodes
-  ending at tracking error 0.3.
+  ending at tracking error 0.3;
+* ``start``: PHC's starts with MoCapAct's termination (which of the two makes the difference).
 
 Every figure comes from :mod:`tasks.tracking.metrics` through the library's own evaluations
 (``expert eval`` and ``distill eval`` compute the same). Writes one JSON file; the results page and the
@@ -39,6 +40,7 @@ from tasks.walker import build_walker
 PROTOCOLS = {
     "phc": {"init": "start", "action_noise": 0.0, "termination": "distance", "min_steps": 29},
     "mocapact": {"init": "random", "action_noise": 0.1, "termination": "error", "min_steps": 29},
+    "start": {"init": "start", "action_noise": 0.0, "termination": "error", "min_steps": 29},
 }
 """The two evaluation protocols (see the module docstring)."""
 
