@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from distill.experts.evaluation import EvaluationConfig, evaluate_policy
+from distill.experts.evaluation import EvaluationConfig, evaluate_policy, evaluation_task
 from distill.experts.files import find_experts
 from distill.experts.loading import load_expert
 from distill.npmp.evaluation import PolicyEvaluationConfig, evaluate_multi_clip
@@ -77,6 +77,27 @@ def _row(metrics: dict[str, list[float]]) -> dict[str, float]:
     }
 
 
+def whole_snippet_from(policy, snippet: str, starts: list[int], clips: str | None, walker) -> dict[str, dict]:
+    """Where a deterministic expert's episode from each start frame ends: ``{start: {"frame", "reached_end"}}``.
+
+    Random starts give mostly short episodes; this shows whether an expert holds the rest of its snippet from
+    early frames too.
+    """
+    env = ClipTrackingEnv(evaluation_task((snippet,), policy, EvaluationConfig(action_noise=0.0), clips), walker=walker)
+    out = {}
+    for start in starts:
+        if not 0 <= start < env.start_counts[0]:
+            continue
+        observation, _ = env.reset(seed=0, options={"start_step": env.references[0].first_frame + start})
+        while True:
+            action = policy.mean_actions({key: value[None] for key, value in observation.items()})[0]
+            observation, _, terminated, truncated, info = env.step(action)
+            if terminated or truncated:
+                break
+        out[str(start)] = {"frame": int(info["time_step"]), "reached_end": bool(truncated)}
+    return out
+
+
 def episodes_for(protocol: dict, episodes: int) -> int:
     """From the first frame without noise every episode is the same: one suffices."""
     return 1 if protocol["init"] == "start" and protocol["action_noise"] == 0 else episodes
@@ -119,6 +140,13 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=100, help="episodes per snippet and source (random starts)")
     parser.add_argument("--clips", default=None, help="clip file (default: built-in synthetic)")
     parser.add_argument("--out", type=Path, default=None, help="JSON file to write")
+    parser.add_argument(
+        "--start-frames",
+        type=int,
+        nargs="*",
+        default=[0, 10, 20, 40, 80, 120],
+        help="frames (from each snippet's first) each expert runs from, deterministically, to the end or a failure",
+    )
     args = parser.parse_args()
     if args.table is not None:
         print("\n".join(table_rows(args.table)))
@@ -159,10 +187,16 @@ def main() -> None:
         }
         for source, rows in sources.items():
             print(f"\n{name} protocol, {source}:\n{metrics_table(rows)}")
+    by_start = {
+        snippet: whole_snippet_from(load_expert(found.root), snippet, args.start_frames, args.clips, walker)
+        for snippet, found in experts.items()
+    }
+    print(f"\nwhere each expert's deterministic episode from a start frame ends (frame, reached the end): {by_start}")
     record = {
         "snippets": snippets,
         "metrics": list(TRACKING_METRICS),
         "protocols": results,
+        "experts_from_start_frames": by_start,
         "experts": [str(found.root) for found in experts.values()],
         "policy": str(args.policy) if args.policy else None,
         "evaluation_defaults": dataclasses.asdict(EvaluationConfig()),
