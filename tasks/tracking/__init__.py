@@ -3,6 +3,8 @@
 * :mod:`tasks.tracking.env`: :class:`ClipTrackingEnv` (equal to dm_control's task within 1e-14);
 * :mod:`tasks.tracking.reference`: the reference snippet and the walker state it is compared with;
 * :mod:`tasks.tracking.rewards`: the CoMic reward and the termination error, pure functions;
+* :mod:`tasks.tracking.metrics`: success, position, velocity and acceleration errors (mm) of an episode, and
+  their statistics over snippets;
 * :mod:`tasks.tracking.stock`: dm_control's own ``MultiClipMocapTracking``, for parity tests and benchmarks.
 """
 
