@@ -73,9 +73,18 @@ def model_card(path: str | os.PathLike, links: DocLinks | None = None) -> CardPa
     return builder(_context(facts, links or DocLinks()))
 
 
-def register_card_builder(file_format: str, builder: CardBuilder) -> None:
-    """Makes :func:`card_page` build the cards of files of ``file_format`` with ``builder``."""
+def register_card_builder(
+    file_format: str, builder: CardBuilder, command: str = "mocap-hierarchy decoder card"
+) -> None:
+    """Makes :func:`card_page` build the cards of files of ``file_format`` with ``builder``.
+
+    Args:
+        file_format: The ``format`` of the files' JSON description.
+        builder: Builds the page from a :class:`~hierarchy.card_markdown.CardContext`.
+        command: The command that prints such a card, followed on the page by the file's name.
+    """
     CARD_BUILDERS[file_format] = builder
+    CARD_COMMANDS[file_format] = command
 
 
 def card_page_name(name: str, kind: str = "decoder") -> str:
@@ -94,7 +103,8 @@ def _context(facts: FileFacts, links: DocLinks) -> CardContext:
         display = f"hierarchy/pretrained/{path.resolve().relative_to(pretrained.PRETRAINED_FOLDER)}"
         command = f"mocap-hierarchy decoder card {shipped}{' --prior' if prior else ''}"
         return CardContext(facts, card, shipped, display, shipped, command, links)
-    return CardContext(facts, card, None, path.name, path.name, f"mocap-hierarchy decoder card {path.name}", links)
+    command = CARD_COMMANDS.get(facts.file_format, "mocap-hierarchy decoder card")
+    return CardContext(facts, card, None, path.name, path.name, f"{command} {path.name}", links)
 
 
 # ----------------------------------------------------------------------------------------------- decoders
@@ -395,3 +405,6 @@ CARD_BUILDERS: dict[str, CardBuilder] = {
     TASK_POLICY_FORMAT: task_policy_card,
 }
 """The card builder of each file format (:func:`register_card_builder` adds one)."""
+
+CARD_COMMANDS: dict[str, str] = {}
+"""The command that prints the cards of a registered file format (default: ``mocap-hierarchy decoder card``)."""

@@ -88,6 +88,13 @@ def add_commands(subparsers: LazySubParsers) -> None:
     export.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to export")
     export.add_argument("--trust-pickle", action="store_true", help="convert an expert without our sidecar first")
     export.set_defaults(handler=_export)
+    card = commands.add_parser("card", help="write an expert's model card as Markdown (from its expert.safetensors)")
+    card.add_argument("expert", type=Path, help="an expert directory, or its expert.safetensors")
+    card.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to describe")
+    card.add_argument(
+        "--out", type=Path, default=None, help="Markdown file, or a folder for FOLDER/MODEL_CARD.md (default: print)"
+    )
+    card.set_defaults(handler=_card)
 
 
 _SHARED_WITH_CPU = tuple(
@@ -214,7 +221,7 @@ def _evaluate(args: argparse.Namespace) -> None:
     from distill.experts.evaluation import evaluate_policy
     from distill.experts.files import find_experts
     from distill.experts.loading import load_expert
-    from tasks.tracking.metrics import TERMINATION_NAMES, aggregate, metrics_table
+    from tasks.tracking.metrics import TABLE_COLUMNS, TERMINATION_NAMES, aggregate, metrics_table
 
     config = dataclass_from_args(EvaluationConfig, args)
     if args.deterministic:
@@ -229,7 +236,12 @@ def _evaluate(args: argparse.Namespace) -> None:
         f"success: reaching the snippet's end without termination by {TERMINATION_NAMES[config.termination]}"
     )
     per_snippet = {r["snippet"]: {**r, **r["tracking"]} for r in results}
-    print(metrics_table(per_snippet))
+    columns: dict[str, str] = {}
+    for name, label in TABLE_COLUMNS.items():
+        columns[name] = label
+        if name == "normalized_length":  # its standard error right after it
+            columns["normalized_length_standard_error"] = "(s.e.)"
+    print(metrics_table(per_snippet, columns))
     if args.json:
         from foundation.atomic import write_json
 
@@ -292,3 +304,24 @@ def _export(args: argparse.Namespace) -> None:
         f"input: observation (batch, {sum(sizes.values())}), {len(sizes)} keys in sorted order; output: action "
         f"(batch, {policy.spec.action_size}) within [-1, 1], {meaning}"
     )
+
+
+def _card(args: argparse.Namespace) -> None:
+    import distill.expert_card  # noqa: F401  (registers the expert card builder)
+    from distill.experts.files import ExpertDir
+    from foundation.atomic import write_text
+    from hierarchy.card_markdown import CARD_FILE
+    from hierarchy.card_page import card_page
+
+    source = ExpertDir(args.expert, args.evaluation).sidecar if args.expert.is_dir() else args.expert
+    if not source.is_file():
+        raise FileNotFoundError(
+            f"{source} does not exist: give an expert directory holding expert.safetensors (`mocap-hierarchy expert "
+            "convert` writes it for MoCapAct's experts) or the file itself"
+        )
+    text = card_page(source)
+    if args.out is None:
+        print(text)
+        return
+    out = args.out / CARD_FILE if args.out.is_dir() else args.out
+    print(f"wrote {write_text(out, text)}")

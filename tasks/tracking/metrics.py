@@ -209,4 +209,6 @@ def metrics_table(per_snippet: Mapping[str, Mapping[str, float]], columns: Mappi
 
 
 def _cell(name: str, value: float) -> str:
-    return f"{value:.1f}" if name.endswith("_mm") else f"{value:.3f}"
+    if name.endswith("_mm"):
+        return f"{value:.1f}"
+    return f"{value:.4f}" if name.endswith("_standard_error") else f"{value:.3f}"
