@@ -43,6 +43,9 @@ PARITY_TOLERANCE = 1e-5
 EXPORT_EXTRA = 'pip install -e ".[export]"'
 """How to install what ONNX export needs (``pip install "mocap-hierarchy[export]"`` from a registry)."""
 
+PARITY_ROWS = 256
+"""Rows of the parity batch an export draws when it is given none (:func:`normal_batch`)."""
+
 BATCH = "batch"
 """Name of the dynamic first axis of every input and output."""
 
@@ -246,7 +249,7 @@ def split_flat(flat: np.ndarray, sizes: Mapping[str, int]) -> dict[str, np.ndarr
     return out
 
 
-def normal_batch(mean: np.ndarray, std: np.ndarray, rows: int, seed: int = 0) -> np.ndarray:
+def normal_batch(mean: np.ndarray, std: np.ndarray, rows: int = PARITY_ROWS, seed: int = 0) -> np.ndarray:
     """``(rows, size)`` float32 samples of independent normals: a parity batch where a model's inputs usually are."""
     rng = np.random.default_rng(seed)
     return (np.asarray(mean) + np.asarray(std) * rng.standard_normal((rows, len(mean)))).astype(np.float32)

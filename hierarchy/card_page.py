@@ -20,9 +20,11 @@ from pathlib import Path
 from typing import Any
 
 import hierarchy.pretrained as pretrained
+from foundation.atomic import write_text
 from foundation.interfaces import flat_observation_port, vector_port
 from foundation.onnx_files import ONNX_OPSET
 from hierarchy.card_markdown import (
+    CARD_FILE,
     WALKER,
     CardBuilder,
     CardContext,
@@ -61,6 +63,16 @@ def card_page(path: str | os.PathLike, links: DocLinks | None = None) -> str:
         ModelCardError: Not a model file, a format without a card builder, or a card of the wrong types.
     """
     return model_card(path, links).markdown()
+
+
+def write_card(path: str | os.PathLike, out: str | os.PathLike) -> Path:
+    """Writes :func:`card_page` of ``path`` to ``out`` atomically (a folder gets ``out/MODEL_CARD.md``).
+
+    Returns:
+        The file written.
+    """
+    out = Path(out)
+    return write_text(out / CARD_FILE if out.is_dir() else out, card_page(path))
 
 
 def model_card(path: str | os.PathLike, links: DocLinks | None = None) -> CardPage:

@@ -28,12 +28,9 @@ import torch
 from torch import nn
 
 from foundation.interfaces import flat_observation_port, vector_port
-from foundation.onnx_files import OnnxExport, normal_batch, split_flat, write_onnx
+from foundation.onnx_files import PARITY_ROWS, OnnxExport, normal_batch, split_flat, write_onnx
 from hierarchy.decoder import DECODER_FORMAT, LatentDecoder
 from hierarchy.task_policy import TASK_POLICY_FORMAT, TaskPolicy
-
-PARITY_ROWS = 256
-"""Rows of the parity batch an export draws when it is given none."""
 
 
 def export_decoder(
@@ -75,7 +72,7 @@ def _decoder_batch(decoder: LatentDecoder) -> dict[str, np.ndarray]:
     mean, std = decoder.observation_mean.cpu().numpy(), decoder.observation_std.cpu().numpy()
     bound = decoder.spec.latent_bound
     latent = np.random.default_rng(1).uniform(-bound, bound, (PARITY_ROWS, decoder.spec.latent_size))
-    return {"observation": normal_batch(mean, std, PARITY_ROWS), "latent": latent.astype(np.float32)}
+    return {"observation": normal_batch(mean, std), "latent": latent.astype(np.float32)}
 
 
 class TaskPolicyGraph(nn.Module):
@@ -127,9 +124,9 @@ def export_task_policy(
         foundation.onnx_files.OnnxParityError: The graph differs from the policy by more than 1e-5.
     """
     spec = policy.spec
+    graph = TaskPolicyGraph(policy)
     if inputs is None:
-        std = np.sqrt(policy.obs_var.numpy() + spec.obs_epsilon)
-        inputs = {"observation": normal_batch(policy.obs_mean.numpy(), std, PARITY_ROWS)}
+        inputs = {"observation": normal_batch(graph.obs_mean.numpy(), graph.obs_std.numpy())}
     metadata = {
         "format": TASK_POLICY_FORMAT,
         "interface": task_policy_interface(policy),
@@ -143,9 +140,7 @@ def export_task_policy(
     def reference(given: Mapping[str, np.ndarray]) -> np.ndarray:
         return policy.act(split_flat(given["observation"], spec.observation_sizes))
 
-    return write_onnx(
-        TaskPolicyGraph(policy), {"observation": inputs["observation"]}, "action", path, metadata, reference
-    )
+    return write_onnx(graph, {"observation": inputs["observation"]}, "action", path, metadata, reference)
 
 
 def task_policy_interface(policy: TaskPolicy) -> dict[str, Any]:

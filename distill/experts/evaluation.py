@@ -24,7 +24,7 @@ from distill.experts.policy import ExpertPolicy
 from foundation.lockstep import Lockstep
 from tasks.observable_sets import OBSERVABLE_SETS
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
-from tasks.tracking.metrics import EPISODE_METRICS, episode_means, record_episode
+from tasks.tracking.metrics import episode_means, record_episode
 from tasks.walker import WalkerModel, build_walker
 
 
@@ -168,7 +168,7 @@ def evaluate_policy(
     n_envs = min(config.n_envs, config.episodes)
     envs = [ClipTrackingEnv(tracking, walker=walker) for _ in range(n_envs)]
     lockstep = Lockstep(envs, config.episodes, [config.seed * 100_003 + i for i in range(n_envs)])
-    metrics: dict[str, list[float]] = {name: [] for name in EPISODE_METRICS}
+    metrics: dict[str, list[float]] = {}
     bar = tqdm(total=config.episodes, desc=f"evaluating {snippet}", unit="ep", disable=not progress)
     while lockstep.active:
         for step in lockstep.step(policy.mean_actions(lockstep.batch(policy.keys))):

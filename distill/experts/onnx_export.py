@@ -26,9 +26,6 @@ from distill.experts.policy import ExpertPolicy
 from foundation.interfaces import flat_observation_port, vector_port
 from foundation.onnx_files import OnnxExport, normal_batch, split_flat, write_onnx
 
-PARITY_ROWS = 256
-"""Rows of the parity batch an export draws when it is given none."""
-
 RESIDUAL_MEANING = (
     "offset from the reference's next pose: the humanoid receives clip(action + reference actuation, -1, 1)"
 )
@@ -80,16 +77,15 @@ def export_expert(
         path: The ``.onnx`` file to write.
         source: The expert's directory or file name, for the metadata.
         inputs: The parity batch ``{"observation": (N, observation_size)}``; default:
-            :data:`PARITY_ROWS` observations drawn from the expert's normaliser statistics.
+            :data:`foundation.onnx_files.PARITY_ROWS` observations drawn from the expert's normaliser statistics.
 
     Raises:
         foundation.onnx_files.OnnxParityError: The graph differs from the expert by more than 1e-5.
     """
     sizes = expert_observation_sizes(policy)
+    graph = ExpertGraph(policy)
     if inputs is None:
-        mean, variance = policy.observation_statistics()
-        std = np.concatenate([np.sqrt(variance[k] + policy.spec.obs_epsilon) for k in sizes])
-        inputs = {"observation": normal_batch(np.concatenate([mean[k] for k in sizes]), std, PARITY_ROWS)}
+        inputs = {"observation": normal_batch(graph.obs_mean.numpy(), 1.0 / graph.obs_scale.numpy())}
     residual = policy.residual_actions
     interface = {
         "inputs": [flat_observation_port(sizes)],
@@ -107,4 +103,4 @@ def export_expert(
     def reference(given: Mapping[str, np.ndarray]) -> np.ndarray:
         return policy.mean_actions(split_flat(given["observation"], sizes))
 
-    return write_onnx(ExpertGraph(policy), {"observation": inputs["observation"]}, "action", path, metadata, reference)
+    return write_onnx(graph, {"observation": inputs["observation"]}, "action", path, metadata, reference)

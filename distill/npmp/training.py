@@ -25,10 +25,9 @@ from distill.dataset.sampler import SamplerConfig, WindowDataset
 from distill.npmp.config import default_sampler  # defined there (light), used and re-exported here
 from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec
 from distill.trainer import DatasetTraining, TrainerConfig, TrainingOutcome, train_on_dataset, write_run_summary
-from foundation.atomic import write_text
 from foundation.config_cli import dataclass_flags
 from hierarchy.card_markdown import CARD_FILE, layers_text
-from hierarchy.card_page import card_page
+from hierarchy.card_page import write_card
 
 DECODER_FILE = "decoder.safetensors"
 POLICY_FILE = "policy.safetensors"
@@ -109,7 +108,7 @@ def train_npmp(
     policy_path = policy.save(out / POLICY_FILE)
     card = decoder_card(data, out, npmp, trainer, sampler, run)
     decoder_path = policy.export_decoder(**facts, model_card=card).save(out / DECODER_FILE)
-    write_text(out / CARD_FILE, card_page(decoder_path))
+    write_card(decoder_path, out / CARD_FILE)
     write_run_summary(out / "distill.json", settings, trainer, sampler, run)
     return DistillResult(decoder_path, policy_path, run.outcome)
 

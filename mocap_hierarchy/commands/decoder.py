@@ -112,8 +112,7 @@ def _package(args: argparse.Namespace) -> None:
 
 
 def _card(args: argparse.Namespace) -> None:
-    from hierarchy.card_markdown import CARD_FILE
-    from hierarchy.card_page import card_page
+    from hierarchy.card_page import card_page, write_card
 
     if args.prior:
         from hierarchy.latent_prior import resolve_prior, shipped_priors
@@ -124,14 +123,10 @@ def _card(args: argparse.Namespace) -> None:
             raise FileNotFoundError(f"no latent prior {args.file} (shipped with decoders: {shipped})")
     else:
         source = args.file
-    text = card_page(source)
     if args.out is None:
-        print(text)
+        print(card_page(source))
         return
-    from foundation.atomic import write_text
-
-    out = args.out / CARD_FILE if args.out.is_dir() else args.out
-    print(f"wrote {write_text(out, text)}")
+    print(f"wrote {write_card(source, args.out)}")
 
 
 def _fit_prior(args: argparse.Namespace) -> None:

@@ -309,9 +309,7 @@ def _export(args: argparse.Namespace) -> None:
 def _card(args: argparse.Namespace) -> None:
     import distill.expert_card  # noqa: F401  (registers the expert card builder)
     from distill.experts.files import ExpertDir
-    from foundation.atomic import write_text
-    from hierarchy.card_markdown import CARD_FILE
-    from hierarchy.card_page import card_page
+    from hierarchy.card_page import card_page, write_card
 
     source = ExpertDir(args.expert, args.evaluation).sidecar if args.expert.is_dir() else args.expert
     if not source.is_file():
@@ -319,9 +317,7 @@ def _card(args: argparse.Namespace) -> None:
             f"{source} does not exist: give an expert directory holding expert.safetensors (`mocap-hierarchy expert "
             "convert` writes it for MoCapAct's experts) or the file itself"
         )
-    text = card_page(source)
     if args.out is None:
-        print(text)
+        print(card_page(source))
         return
-    out = args.out / CARD_FILE if args.out.is_dir() else args.out
-    print(f"wrote {write_text(out, text)}")
+    print(f"wrote {write_card(source, args.out)}")

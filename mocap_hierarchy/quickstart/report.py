@@ -2,12 +2,10 @@
 
 from __future__ import annotations
 
-import numpy as np
-
 from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, MODE_LABELS
 from mocap_hierarchy.quickstart.records import job_runs
 from mocap_hierarchy.quickstart.verdicts import reward_per_step
-from tasks.tracking.metrics import TRACKING_METRICS, format_metrics
+from tasks.tracking.metrics import TRACKING_METRICS, aggregate, format_metrics
 
 
 def print_summary(summary: dict) -> None:
@@ -42,10 +40,10 @@ def print_summary(summary: dict) -> None:
         f"experts' normalised reward, {fraction['normalized_length']:.3f} of their length ({fraction['snippets']} "
         "snippets, deterministic, from the start)"
     )
-    tracked = summary["distill"].get("multi_clip", {}).values()
-    if tracked and all("success" in row for row in tracked):
-        means = {name: float(np.nanmean([row[name] for row in tracked])) for name in TRACKING_METRICS}
-        print(f"  tracking, mean over its snippets: {format_metrics(means)}")
+    tracked = summary["distill"].get("multi_clip", {})
+    if tracked and all("success" in row for row in tracked.values()):
+        over = aggregate(tracked, TRACKING_METRICS)
+        print(f"  tracking, mean over its snippets: {format_metrics({k: v['mean'] for k, v in over.items()})}")
     runs = summary["transfer"]
     first = next(iter(runs.values()))
     print(

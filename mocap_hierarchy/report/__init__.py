@@ -49,7 +49,7 @@ def _fmt(value: float | None) -> str:
 def _tracking_section(contents: RunContents, rel: Callable[[Path], str]) -> Section | None:
     """The tracking metrics of every evaluation that has them: one row per file and snippet, then the mean."""
     from mocap_hierarchy.report.page import Section
-    from tasks.tracking.metrics import METRIC_LABELS, TRACKING_METRICS
+    from tasks.tracking.metrics import METRIC_LABELS, TRACKING_METRICS, aggregate
 
     sources = [(f"experts, noise {e.action_noise:g}, {e.init}", e.path, e.tracking) for e in contents.evaluations]
     sources += [("multi-clip policy", m.path, m.tracking) for m in contents.multi_clip]
@@ -61,8 +61,7 @@ def _tracking_section(contents: RunContents, rel: Callable[[Path], str]) -> Sect
         table = {snippet: tracking[snippet] for snippet in sorted(tracking)}
         if len(table) > 1:
             table["mean over snippets"] = {
-                name: float(np.nanmean([row.get(name, math.nan) for row in tracking.values()]))
-                for name in TRACKING_METRICS
+                name: statistics["mean"] for name, statistics in aggregate(tracking, TRACKING_METRICS).items()
             }
         for snippet, values in table.items():
             cells = [_fmt(values.get("success"))]
