@@ -4,13 +4,27 @@ It lives beside :mod:`distill.experts`, not in it: the experts never need the hi
 renderer is part of it (:mod:`hierarchy.card_page`).
 
 Built from the file alone (its :class:`~distill.experts.policy.ExpertSpec` and provenance, and a model card
-JSON under ``provenance["model_card"]`` where one was attached) by the renderer of
-:mod:`hierarchy.card_page`; importing this module registers the builder, so
+JSON under ``provenance["model_card"]`` where one was attached, by ``mocap-hierarchy expert package``) by the
+renderer of :mod:`hierarchy.card_page`; importing this module registers the builder, so
 :func:`hierarchy.card_page.card_page` then renders expert files too. ``mocap-hierarchy expert card`` prints it.
+A shipped expert's page is titled with its name (``synthetic-v3/SYN_walk_slow-0-182``), which loads it.
+
+An expert's card holds the model card fields that apply to one expert (``summary``, ``intended_use``,
+``budgets``, ``commands``, ``notes``; :mod:`hierarchy.model_card`) and ``scores``: the expert's own
+evaluation as one flat mapping, its ``protocol`` and numbers: ``{"protocol": "...", "normalized_reward": 0.7,
+"normalized_length": 0.98, "episodes": 1000, "success": 0.8, "global_position_error_mm": 85.7, ...}`` (the
+tracking metrics under their names in :data:`tasks.tracking.metrics.TRACKING_METRICS`;
+:func:`check_expert_card` checks the types).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import distill.experts.shipped as shipped
 from distill.experts.files import EXPERT_FORMAT
 from foundation.interfaces import flat_observation_port, vector_port
 from hierarchy.card_markdown import (
@@ -24,15 +38,90 @@ from hierarchy.card_markdown import (
     opening_line,
     provenance_lines,
     runtime_lines,
+    table,
+    text,
 )
 from hierarchy.card_page import register_card_builder
+from hierarchy.model_card import ModelCardError, check_card
+from tasks.tracking.metrics import METRIC_LABELS
 
 EXPERT_TRAINING_FACTS = ("trained_steps", "clips")
 """The provenance facts of an expert file that its card shows under Training."""
 
 
+SCORE_LABELS = {"normalized_reward": "normalised reward", "normalized_length": "normalised length"}
+"""How the scores table names MoCapAct's two scores (the tracking metrics: by their labels in the metrics table)."""
+
+
+def check_expert_card(card: Any, where: str = "") -> dict[str, Any]:
+    """Returns ``card`` when its fields have the expected JSON types (:func:`hierarchy.model_card.check_card`).
+
+    ``scores`` must be a mapping whose ``protocol`` is a string and every other value a number (or null).
+
+    Raises:
+        ModelCardError: Naming the field, the type it needs and the type it has.
+    """
+    card = check_card(card, where)
+    prefix = f"{where}: " if where else ""
+    scores = card.get("scores", {})
+    if not isinstance(scores, Mapping):
+        raise ModelCardError(f"{prefix}model card field `scores` must be a mapping, not {_json_kind(scores)}")
+    for key, value in scores.items():
+        if key == "protocol":
+            if not isinstance(value, str):
+                raise ModelCardError(f"{prefix}model card field `scores.protocol` must be a string")
+        elif value is not None and (not isinstance(value, int | float) or isinstance(value, bool)):
+            raise ModelCardError(f"{prefix}model card field `scores.{key}` must be a number, not {_json_kind(value)}")
+    return card
+
+
+_JSON_KINDS = {
+    bool: "a boolean",
+    str: "a string",
+    int: "a number",
+    float: "a number",
+    list: "a list",
+    dict: "a mapping",
+}
+
+
+def _json_kind(value: Any) -> str:
+    if value is None:
+        return "null"
+    return next((name for kind, name in _JSON_KINDS.items() if isinstance(value, kind)), type(value).__name__)
+
+
+def scores_lines(scores: Mapping[str, Any]) -> list[str]:
+    """An expert card's ``scores`` as Markdown: its protocol, then a table of score and value (empty: none)."""
+    rows = [[_score_label(key), "-" if value is None else text(value)] for key, value in scores.items()]
+    rows = [row for row, key in zip(rows, scores, strict=True) if key != "protocol"]
+    if not rows:
+        return []
+    protocol = [str(scores["protocol"]), ""] if scores.get("protocol") else []
+    return [*protocol, *table(["score", "value"], rows)]
+
+
+def _score_label(key: str) -> str:
+    return SCORE_LABELS.get(key) or METRIC_LABELS.get(key) or key
+
+
+def _shipped(context: CardContext) -> CardContext:
+    """``context`` naming a shipped expert by its name (display, source, command); others unchanged."""
+    root = context.facts.path.parent.parent.parent  # <root>/eval_rsi/model/expert.safetensors
+    name = shipped.shipped_name(root)
+    if name is None:
+        return context
+    display = Path("distill/experts/pretrained") / context.facts.path.resolve().relative_to(
+        shipped.SHIPPED_EXPERTS_FOLDER.resolve()
+    )
+    return replace(
+        context, shipped=name, display=display.as_posix(), source=name, command=f"mocap-hierarchy expert card {name}"
+    )
+
+
 def expert_card(context: CardContext) -> CardPage:
     """The card of an expert file (:mod:`distill.experts.policy`), from its description."""
+    context = _shipped(context)
     facts, card, links = context.facts, context.card, context.links
     description = facts.description
     snippet = str(description.get("snippet", "?"))
@@ -53,9 +142,29 @@ def expert_card(context: CardContext) -> CardPage:
         "multi-clip policy is distilled from (`mocap-hierarchy rollout`), evaluated with `mocap-hierarchy expert "
         "eval`; for research in simulation, not for a real robot."
     )
+    if context.shipped:
+        intended += (
+            f" It is shipped with the library as `{context.shipped}`: load it with "
+            f'`load_expert("{context.shipped}")`, or name it where a command takes experts '
+            f"(`mocap-hierarchy expert eval {context.shipped}`, `rollout --experts {context.shipped}`)."
+        )
     provenance = context.provenance
     training = bullets({"snippet": snippet, "discount": description.get("gamma"), "GAE": description.get("gae_lambda")})
     training += bullets({key: provenance[key] for key in EXPERT_TRAINING_FACTS if key in provenance})
+    if card.get("budgets"):
+        training += ["", "### Budgets", "", *bullets(card["budgets"])]
+    training += [
+        "",
+        "### Scores",
+        "",
+        *(
+            scores_lines(card.get("scores", {}))
+            or [
+                "No scores are recorded in this file (`mocap-hierarchy expert eval --json` measures them; the "
+                "`scores` of the card given to `mocap-hierarchy expert package` records them)."
+            ]
+        ),
+    ]
     interface = {
         "inputs": [flat_observation_port(sizes)],
         "outputs": [vector_port("action", action_size, low=-1.0, high=1.0)],
@@ -72,12 +181,14 @@ def expert_card(context: CardContext) -> CardPage:
             "The action is an offset: the humanoid receives `clip(action + pose_to_actuation(reference joints at "
             "t+1), -1, 1)` (`TrackingConfig.residual_actions`).",
         ]
-    artifacts = artifact_lines(context, f"`net.*` {facts.dtype_of('net.')}, normaliser {facts.dtype_of('obs_')}")
+    weights = facts.dtype_of("net.")
+    widened = " (widened to float32 on loading)" if weights != "float32" else ""
+    artifacts = artifact_lines(context, f"`net.*` {weights}{widened}, normaliser {facts.dtype_of('obs_')}")
     artifacts.append(f"- the file format: {links.page('the expert directory', 'reference/formats/expert.md')}")
     runtime = runtime_lines("`distill.experts.loading.load_expert`", WALKER, light=False)
     runtime.append(
-        "- **ONNX**: `mocap-hierarchy expert export EXPERT --onnx OUT.onnx` writes its mean action as one graph; "
-        f"see {links.page('deployment', 'guides/deployment.md')}."
+        f"- **ONNX**: `mocap-hierarchy expert export {context.shipped or 'EXPERT'} --onnx OUT.onnx` writes its mean "
+        f"action as one graph; see {links.page('deployment', 'guides/deployment.md')}."
     )
     limitations = [f"- {note}" for note in card.get("notes", [])]
     limitations += [
@@ -86,6 +197,13 @@ def expert_card(context: CardContext) -> CardPage:
         f"episodes: whole-snippet tracking from the first frame may be worse (see "
         f"{links.page('tracking metrics', 'guides/tracking-metrics.md')}).",
     ]
+    if weights == "float16":
+        limitations.append(
+            "- Its weights are stored as float16: its actions differ slightly from those of the float32 expert it "
+            "was packaged from (`mocap-hierarchy expert package` prints the largest difference)."
+        )
+    made_by = "Written by `mocap-hierarchy expert train`"
+    made_by += ", packaged with `mocap-hierarchy expert package`." if card else "."
     sections = {
         "Overview": overview,
         "Intended use": [intended],
@@ -94,9 +212,9 @@ def expert_card(context: CardContext) -> CardPage:
         "Artifacts": artifacts,
         "Runtime support": runtime,
         "Limitations": limitations,
-        "Provenance": provenance_lines(context, "Written by `mocap-hierarchy expert train`.", EXPERT_TRAINING_FACTS),
+        "Provenance": provenance_lines(context, made_by, EXPERT_TRAINING_FACTS),
     }
-    return CardPage(f"Snippet expert `{snippet}`", opening_line(context), sections)
+    return CardPage(f"Snippet expert `{context.shipped or snippet}`", opening_line(context), sections)
 
 
 register_card_builder(EXPERT_FORMAT, expert_card, command="mocap-hierarchy expert card")

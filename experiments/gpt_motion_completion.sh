@@ -10,5 +10,7 @@ cd "$(dirname "$0")/.."
 [ -f runs/quickstart/summary.json ] || mocap-hierarchy quickstart --out runs/quickstart
 mocap-hierarchy gpt train --data runs/quickstart/dataset --out runs/gpt --steps 3000 --layers 2 --heads 4 \
     --embedding-size 128 --batch-size 64 --learning-rate 3e-4
-mocap-hierarchy gpt complete --gpt runs/gpt --experts runs/quickstart/experts --episodes 10
-mocap-hierarchy gpt complete --gpt runs/gpt --experts runs/quickstart/experts --episodes 10 --context window
+# The measure of 2026-11-21: the GPT alone, every episode from the snippet's first frame.
+mocap-hierarchy gpt complete --gpt runs/gpt --experts runs/quickstart/experts --episodes 10 --completers gpt --starts 1
+mocap-hierarchy gpt complete --gpt runs/gpt --experts runs/quickstart/experts --episodes 10 --completers gpt --starts 1 \
+    --context window

@@ -31,6 +31,7 @@ from pathlib import Path
 import numpy as np
 from tqdm.auto import tqdm
 
+from foundation.atomic import write_json
 from foundation.config_cli import file_in_folder
 from hierarchy.task_policy import load_task_policy
 from hierarchy.transfer import POLICY_FILE, track_speed
@@ -66,6 +67,7 @@ def main() -> None:
     parser.add_argument("--episodes", type=int, default=50, help="episodes per policy (seeds --seed, --seed + 1, ...)")
     parser.add_argument("--seed", type=int, default=1000)
     parser.add_argument("--out", type=Path, default=Path("speed_tracking.png"))
+    parser.add_argument("--json", type=Path, default=None, help="also write each policy's figures to this file")
     parser.add_argument(
         "--zero-latent",
         metavar="DECODER",
@@ -128,6 +130,11 @@ def main() -> None:
         scatter.legend(loc="upper left", fontsize=7)
     if reference is not None:
         print(table_row(f"{args.zero_latent}, z = 0", reference) + "  (not drawn)")
+    if args.json is not None:
+        figures = {label: summarise(episodes).as_dict() for label, episodes in runs.items()}
+        settings = {"episodes": args.episodes, "steps": args.steps, "seed": args.seed}
+        write_json(args.json, {"settings": settings, "policies": figures})
+        print(f"figures: {args.json}")
     figure.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(args.out, dpi=110)

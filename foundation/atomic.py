@@ -112,6 +112,8 @@ def owned_temporary(path: str | os.PathLike) -> Path:
 def remove_stale_temporaries(path: str | os.PathLike) -> list[Path]:
     """Removes temporaries of ``path`` whose writer (a process on this host) no longer runs.
 
+    A temporary is a file, or a folder staged whole before its rename (a packaged expert directory).
+
     Returns:
         The files removed.
     """
@@ -120,7 +122,10 @@ def remove_stale_temporaries(path: str | os.PathLike) -> list[Path]:
     for candidate in path.parent.glob(f".{glob.escape(path.name)}.{glob.escape(_HOST)}-*.tmp"):
         owner = candidate.name[len(f".{path.name}.{_HOST}-") :].split(".", 1)[0]
         if owner.isdigit() and not _process_alive(int(owner)):
-            candidate.unlink(missing_ok=True)
+            if candidate.is_dir() and not candidate.is_symlink():
+                shutil.rmtree(candidate, ignore_errors=True)
+            else:
+                candidate.unlink(missing_ok=True)
             removed.append(candidate)
     return removed
 

@@ -183,7 +183,8 @@ class CardContext:
     Attributes:
         facts: The file's description, tensors' dtypes and shapes, size and SHA-256.
         card: The model card JSON stored in the file (empty when it has none), its types checked.
-        shipped: The shipped decoder name the file is, or whose prior it is; None for other files.
+        shipped: The shipped name the file has (a decoder's, a task policy's), or that of the decoder whose
+            prior it is; None for other files.
         display: How the page names the file: ``hierarchy/pretrained/...`` for a shipped one, else its name.
         source: What loads it by name or path (``synthetic-v3``, ``decoder.safetensors``).
         command: The command that prints this card.

@@ -6,7 +6,8 @@
 alone: the model card JSON stored in its description (:mod:`hierarchy.model_card`;
 any kind of file may carry one under ``provenance["model_card"]``) and the rest of
 its description (spec and provenance), its size and hashes. A shipped file also
-names its shipped companion (a decoder's latent prior, a prior's decoder).
+names its shipped companion (a decoder's latent prior, a prior's decoder, a task
+policy's decoder) and the name that loads it.
 
 Each kind of file has a builder, chosen by the file's format: decoders, latent
 priors and task policies are built here; :func:`register_card_builder` adds one
@@ -41,6 +42,8 @@ from hierarchy.card_markdown import (
     runtime_lines,
     scores_markdown,
     size_text,
+    table,
+    text,
 )
 from hierarchy.decoder import DECODER_FORMAT, DecoderSpec, load_decoder
 from hierarchy.latent_prior import PRIOR_FORMAT, shipped_prior_name, shipped_priors
@@ -55,11 +58,11 @@ def card_page(path: str | os.PathLike, links: DocLinks | None = None) -> str:
     """The model card of a model file (decoder, latent prior, task policy) as Markdown, in the eight sections.
 
     Args:
-        path: The file; a shipped decoder's name also works.
+        path: The file; a shipped decoder's or task policy's name also works.
         links: How the page refers to the documentation (default: by path, for reading outside the site).
 
     Raises:
-        FileNotFoundError: No such file.
+        FileNotFoundError: No such file or shipped name (the message lists the shipped names).
         ModelCardError: Not a model file, a format without a card builder, or a card of the wrong types.
     """
     return model_card(path, links).markdown()
@@ -77,7 +80,11 @@ def write_card(path: str | os.PathLike, out: str | os.PathLike) -> Path:
 
 def model_card(path: str | os.PathLike, links: DocLinks | None = None) -> CardPage:
     """The :class:`CardPage` of :func:`card_page` (its sections as lines)."""
-    facts = read_file_facts(pretrained.resolve_decoder(path))
+    source = pretrained.resolve_model(path)
+    if not source.exists():
+        hints = f"{pretrained.names_hint()}; {pretrained.task_policies_hint()}"
+        raise FileNotFoundError(f"model file {source} does not exist ({hints})")
+    facts = read_file_facts(source)
     builder = CARD_BUILDERS.get(facts.file_format)
     if builder is None:
         known = ", ".join(CARD_BUILDERS)
@@ -100,7 +107,13 @@ def register_card_builder(
 
 
 def card_page_name(name: str, kind: str = "decoder") -> str:
-    """The documentation page of shipped decoder ``name``'s card (``kind`` ``prior``: of its latent prior)."""
+    """The documentation page of shipped decoder ``name``'s card (``kind`` ``prior``: of its latent prior).
+
+    ``kind`` ``policy``: of shipped task policy ``name`` (``synthetic-v3/velocity_control`` has
+    ``task-policy-synthetic-v3-velocity_control.md``).
+    """
+    if kind == "policy":
+        return f"task-policy-{name.replace('/', '-')}.md"
     return f"{name}-prior.md" if kind == "prior" else f"{name}.md"
 
 
@@ -111,8 +124,10 @@ def _context(facts: FileFacts, links: DocLinks) -> CardContext:
     shipped, prior = pretrained.pretrained_name(path), False
     if shipped is None and facts.file_format == PRIOR_FORMAT:
         shipped, prior = shipped_prior_name(path), True
+    if shipped is None and facts.file_format == TASK_POLICY_FORMAT:
+        shipped = pretrained.task_policy_name(path)
     if shipped is not None:
-        display = f"hierarchy/pretrained/{path.resolve().relative_to(pretrained.PRETRAINED_FOLDER)}"
+        display = f"hierarchy/pretrained/{path.resolve().relative_to(pretrained.PRETRAINED_FOLDER).as_posix()}"
         command = f"mocap-hierarchy decoder card {shipped}{' --prior' if prior else ''}"
         return CardContext(facts, card, shipped, display, shipped, command, links)
     command = CARD_COMMANDS.get(facts.file_format, "mocap-hierarchy decoder card")
@@ -339,18 +354,14 @@ def _decoder_check(decoder: str | None, behaviour: str) -> str:
 
 
 def task_policy_card(context: CardContext) -> CardPage:
-    """The card of a task policy file (:mod:`hierarchy.task_policy`), from its description."""
+    """The card of a task policy file (:mod:`hierarchy.task_policy`), from its description and model card."""
     facts, card, links = context.facts, context.card, context.links
     description = facts.description
     task, decoder = description.get("task", "?"), description.get("decoder") or None
     sizes = {str(k): int(v) for k, v in description.get("observation_sizes", {}).items()}
     action_size = int(description.get("action_size", 0))
     low, high = float(description.get("action_low", -1.0)), float(description.get("action_high", 1.0))
-    if decoder:
-        decoder_name = decoder.get("name") or Path(str(decoder.get("path", "?"))).name
-        acts_on = f"latents of the decoder `{decoder_name}`"
-    else:
-        acts_on = "joint targets directly"
+    acts_on = f"latents of the decoder {_policy_decoder(decoder, links)}" if decoder else "joint targets directly"
     parameters = facts.parameters("policy_net.") + facts.parameters("action_net.")
     overview = [
         card.get("summary", f"A high-level policy for the task `{task}`."),
@@ -358,6 +369,8 @@ def task_policy_card(context: CardContext) -> CardPage:
         f"A frozen task policy: a tanh MLP of {layers_text(description.get('hidden_layers', []))} from "
         f"{sum(sizes.values())} observation values to {action_size} actions, {acts_on}; {parameters:,} parameters. "
         "It acts deterministically (the mean action).",
+        "",
+        _policy_loading(context, task),
     ]
     intended = card.get("intended_use") or (
         f"Acting in the task `{task}` with the settings it was trained under, to evaluate or record it "
@@ -367,6 +380,9 @@ def task_policy_card(context: CardContext) -> CardPage:
     overrides = description.get("task_overrides", {})
     training = bullets({"task": task, "task settings changed": overrides or "none"})
     training += bullets({k: provenance[k] for k in TASK_POLICY_TRAINING_FACTS if k in provenance})
+    if card.get("budgets"):
+        training += ["", "### Budgets", "", *bullets(card["budgets"])]
+    training += ["", "### Scores", "", *(_policy_scores(card) or [_no_scores(context)])]
     interface = {
         "inputs": [flat_observation_port(sizes)],
         "outputs": [vector_port("action", action_size, low=low, high=high)],
@@ -382,11 +398,20 @@ def task_policy_card(context: CardContext) -> CardPage:
     if decoder:
         artifacts.append(f"- **decoder**: {_inline({k: v for k, v in decoder.items() if v is not None})}")
     artifacts.append(f"- the file format: {links.page('the policy file', 'reference/formats/policy.md')}")
+    runtime = [
+        *runtime_lines("`hierarchy.load_task_policy`", WALKER, light=False),
+        f'- **Environments**: `hierarchy.transfer.policy_env("{context.source}")` rebuilds the task with its '
+        "recorded settings, decoder and latent prior.",
+        f"- **ONNX**: `mocap-hierarchy transfer export {context.source} --onnx OUT.onnx` writes it as one ONNX graph "
+        f"(opset {ONNX_OPSET}, normaliser and bounds inside) for ONNX Runtime (the `export` extra); see "
+        f"{links.page('deployment', 'guides/deployment.md')}.",
+    ]
     limitations = [f"- {note}" for note in card.get("notes", [])]
     limitations.append(f"- Trained and measured on `{task}` only, with the settings above.")
     if decoder:
         limitations.append(
-            "- It needs the decoder it was trained on: loading compares the decoder's SHA-256 or behaviour SHA-256."
+            "- It needs the decoder it was trained on (and its latent prior, where it acts around one): loading "
+            "finds them at their recorded path or by their shipped name and compares their SHA-256."
         )
     sections = {
         "Overview": overview,
@@ -394,17 +419,66 @@ def task_policy_card(context: CardContext) -> CardPage:
         "Training": training,
         "Inputs and outputs": inputs,
         "Artifacts": artifacts,
-        "Runtime support": runtime_lines("`hierarchy.load_task_policy`", WALKER, light=False),
+        "Runtime support": runtime,
         "Limitations": limitations,
         "Provenance": provenance_lines(
             context, "Written by `mocap-hierarchy transfer train`.", TASK_POLICY_TRAINING_FACTS
         ),
     }
-    return CardPage(f"Task policy `{context.display}`", opening_line(context), sections)
+    title = f"Task policy `{context.shipped}`" if context.shipped else f"Task policy `{context.display}`"
+    return CardPage(title, opening_line(context), sections)
 
 
 TASK_POLICY_TRAINING_FACTS = ("steps", "config")
 """The provenance facts of a task policy file that its card shows under Training."""
+
+
+def _policy_decoder(decoder: dict[str, Any], links: DocLinks) -> str:
+    """The decoder a task policy drives: its card where it is a shipped decoder, else its file's name."""
+    name = decoder.get("name")
+    if name and name in pretrained.pretrained_decoders():
+        named = links.card(f"`{name}`", card_page_name(name), f"mocap-hierarchy decoder card {name}")
+    else:
+        named = f"`{name or Path(str(decoder.get('path', '?'))).name}`"
+    prior = decoder.get("latent_prior") or {}
+    prior_name = prior.get("name")
+    if prior_name and prior_name in shipped_priors():
+        command = f"mocap-hierarchy decoder card {prior_name} --prior"
+        card = links.card(f"latent prior of `{prior_name}`", card_page_name(prior_name, "prior"), command)
+        named += f", around the {card}"
+    elif prior:
+        named += f", around the latent prior `{Path(str(prior.get('path', '?'))).name}`"
+    return named
+
+
+def _policy_loading(context: CardContext, task: str) -> str:
+    """How to load, run and record the policy: by its shipped name, else by its file's name."""
+    source = context.source
+    commands = (
+        f'`load_task_policy("{source}")` (`from hierarchy import load_task_policy`) loads it; '
+        f"`mocap-hierarchy transfer eval {source}` runs it in its task and "
+        f"`mocap-hierarchy record --task {task} --policy {source} --out {task}.rrd` records it."
+    )
+    if context.shipped:
+        return f"Shipped with the library as `{source}` (package data; nothing is downloaded): {commands}"
+    return commands
+
+
+def _policy_scores(card: dict[str, Any]) -> list[str]:
+    """The card's ``scores`` as a table of measures, under its protocol; empty without scores."""
+    scores = dict(card.get("scores", {}))
+    protocol = scores.pop("protocol", None) or card.get("protocol")
+    if not scores:
+        return []
+    rows = [[f"`{key}`", "-" if value is None else text(value)] for key, value in scores.items()]
+    return [*([str(protocol), ""] if protocol else []), *table(["measure", "value"], rows)]
+
+
+def _no_scores(context: CardContext) -> str:
+    return (
+        f"No scores are recorded in this file (`mocap-hierarchy transfer eval {context.source} --json FILE` measures "
+        "them, `mocap-hierarchy transfer package POLICY OUT --card CARD.json` records them in the card)."
+    )
 
 
 def _inline(facts: dict[str, Any]) -> str:

@@ -37,6 +37,7 @@ from torch import nn
 import hierarchy.pretrained as pretrained
 from foundation.described_file import read_described, write_described
 from foundation.networks import ACTIVATIONS, mlp
+from foundation.shipped import ShippedArtifacts
 from hierarchy.decoder import DecoderMismatchError, LatentDecoder, register_standardiser
 
 PRIOR_FORMAT = "mocap_hierarchy.latent_prior"
@@ -159,25 +160,23 @@ class LatentPrior(nn.Module):
         return write_described(path, tensors, PRIOR_FORMAT, PRIOR_SCHEMA_VERSION, asdict(self.spec))
 
 
+def _shipped() -> ShippedArtifacts:
+    return ShippedArtifacts(pretrained.PRETRAINED_FOLDER / PRIORS_SUBFOLDER, "latent prior")
+
+
 def resolve_prior(source: str | os.PathLike) -> Path:
     """An existing path, else the prior shipped for the decoder named ``source`` (unchanged if none)."""
-    path = Path(source)
-    if path.exists():
-        return path
-    shipped = shipped_priors().get(str(source))
-    return shipped if shipped is not None else path
+    return _shipped().resolve(source)
 
 
 def shipped_priors() -> dict[str, Path]:
     """``{decoder name: prior file}`` of the shipped decoders that come with a prior."""
-    folder = pretrained.PRETRAINED_FOLDER / PRIORS_SUBFOLDER
-    return {p.name.removesuffix(".safetensors"): p for p in sorted(folder.glob("*.safetensors"))}
+    return _shipped().names()
 
 
 def shipped_prior_name(path: str | os.PathLike) -> str | None:
     """The decoder name under which ``path`` is shipped, if it is a shipped prior."""
-    resolved = Path(path).resolve()
-    return next((name for name, file in shipped_priors().items() if file.resolve() == resolved), None)
+    return _shipped().name_of(path)
 
 
 def load_latent_prior(source: str | os.PathLike, device: str | torch.device = "cpu") -> LatentPrior:

@@ -1,6 +1,6 @@
-"""Model cards of decoder files: the card's JSON, stored inside the file, and how it is attached.
+"""Model cards of decoder and task policy files: the card's JSON, stored inside the file, and how it is attached.
 
-A card is plain JSON stored in the decoder file's description under
+A card is plain JSON stored in the file's description under
 ``provenance["model_card"]`` (so ``decoder info`` shows it and the file is its
 one source); :mod:`hierarchy.card_page` renders it, with the rest of the file's
 description, as a Markdown page (``decoder card``, the documentation site, the
@@ -12,10 +12,15 @@ all optional:
 * ``data``: the clips, snippets and rollout episodes it was distilled from;
 * ``experts``: ``{snippet: {normalized_reward, normalized_length}}`` of the experts;
 * ``multi_clip``: the same for the distilled multi-clip policy (``snippets``), plus ``fraction``;
+* ``scores``: ``{measure: number or string}``, a task policy's figures (``return``,
+  ``episode_length``, ``speed_slope``, ...; its ``protocol`` may sit among them);
 * ``protocol``: how the scores were measured;
 * ``budgets``: training steps and wall time of each stage, and where it ran;
 * ``commands``: the commands that rebuild it, in order;
 * ``notes``: limitations a user should know.
+
+:func:`package_decoder` attaches a card to a decoder (float16 weights by default),
+:func:`package_task_policy` to a task policy (weights unchanged).
 """
 
 from __future__ import annotations
@@ -41,6 +46,7 @@ CARD_FIELDS: dict[str, type] = {
     "budgets": dict,
     "experts": dict,
     "multi_clip": dict,
+    "scores": dict,
     "commands": list,
     "notes": list,
 }
@@ -81,6 +87,9 @@ def check_card(card: Any, where: str = "") -> dict[str, Any]:
     for field in ("snippets", "fraction"):
         if field in policy:
             require(f"multi_clip.{field}", policy[field], dict, "a mapping")
+    for key, value in card.get("scores", {}).items():
+        if value is not None:
+            require(f"scores.{key}", value, (int, float, str), "a number or a string")
     rows = {f"experts.{k}": v for k, v in card.get("experts", {}).items()}
     rows.update({f"multi_clip.snippets.{k}": v for k, v in policy.get("snippets", {}).items()})
     for field, row in rows.items():
@@ -122,6 +131,28 @@ def package_decoder(
     decoder.spec = replace(decoder.spec, provenance={**decoder.spec.provenance, CARD_KEY: card})
     path = decoder.save(out, torch.float16 if float16 else torch.float32)
     return path, action_difference(decoder, load_decoder(path))
+
+
+def package_task_policy(source: str | os.PathLike, out: str | os.PathLike, card: dict[str, Any]) -> Path:
+    """Writes ``source``'s task policy with ``card`` attached, atomically; tensors are kept as they are.
+
+    Args:
+        source: A task policy file (``policy.safetensors``) or a shipped task policy's name.
+        out: The file to write (``hierarchy/pretrained/policies/DECODER/TASK.safetensors`` to ship it).
+        card: The model card (see the module docstring); it replaces any card the file had.
+
+    Returns:
+        The file written.
+
+    Raises:
+        ModelCardError: The card's fields are not of the expected types (nothing is written).
+    """
+    from hierarchy.task_policy import load_task_policy  # loads the simulator's observables: only when packaging
+
+    card = check_card(card, f"the card for {out}")
+    policy = load_task_policy(source)
+    policy.spec = replace(policy.spec, provenance={**policy.spec.provenance, CARD_KEY: card})
+    return policy.save(out)
 
 
 def card_with_scores(card: dict[str, Any], evaluation: dict[str, Any]) -> dict[str, Any]:

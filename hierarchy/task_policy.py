@@ -23,6 +23,7 @@ from torch import nn
 from foundation.described_file import read_described, write_described
 from foundation.networks import hidden_stack
 from foundation.sb3 import sb3_policy_layout
+from hierarchy.pretrained import resolve_task_policy, task_policies_hint
 from tasks.observables import flat_batch
 
 TASK_POLICY_FORMAT = "mocap_hierarchy.task_policy"
@@ -106,16 +107,20 @@ class TaskPolicy(nn.Module):
 def load_task_policy(path: str | os.PathLike) -> TaskPolicy:
     """Reads a task policy file (tensors and JSON only).
 
+    Args:
+        path: The file, or a shipped task policy's name (``synthetic-v3/velocity_control``,
+            :func:`hierarchy.pretrained.shipped_task_policies`); a path that exists wins.
+
     Raises:
-        FileNotFoundError: No such file.
+        FileNotFoundError: No such file or shipped name (the message lists the shipped names).
         ValueError: Not a task policy file, or a newer schema.
     """
     description, tensors = read_described(
-        path,
+        resolve_task_policy(path),
         TASK_POLICY_FORMAT,
         TASK_POLICY_SCHEMA_VERSION,
         "task policy",
-        missing_hint=" (`mocap-hierarchy transfer train` writes it)",
+        missing_hint=f" (`mocap-hierarchy transfer train` writes it; {task_policies_hint()})",
     )
     action_size = int(description.pop("action_size"))
     description["hidden_layers"] = tuple(description["hidden_layers"])

@@ -3,14 +3,16 @@
 What ``--policy`` may be (recognised by its content, never by unpickling):
 
 * ``random``: uniform random actions in the task's action space;
-* an expert directory (``clip_info.json`` inside): its deterministic actions,
-  on the tracking or motion-completion task of its snippet;
+* an expert directory (``clip_info.json`` inside) or a shipped expert's name
+  (``synthetic-v3/SYN_walk_slow-0-182``): its deterministic actions, on the
+  tracking or motion-completion task of its snippet;
 * a multi-clip ``policy.safetensors`` (``distill train``): tracking with its
   reference look-ahead and deterministic latents;
-* a task ``policy.safetensors`` (``transfer train``): its task, through its
-  decoder when it has one (the latent ``z`` is recorded too);
-* a ``decoder.safetensors``: random latents through the decoder;
-* a ``gpt.safetensors``: motion completion, prompted by ``--prompt EXPERT_DIR``.
+* a task ``policy.safetensors`` (``transfer train``) or a shipped task policy's
+  name (``synthetic-v3/velocity_control``): its task, through its decoder when it
+  has one (the latent ``z`` is recorded too);
+* a ``decoder.safetensors`` or a shipped decoder's name: random latents through the decoder;
+* a ``gpt.safetensors``: motion completion, prompted by ``--prompt EXPERT_DIR`` (or an expert's name).
 """
 
 from __future__ import annotations
@@ -27,8 +29,10 @@ import gymnasium as gym
 import numpy as np
 
 import tasks
+from distill.experts.shipped import names_hint as experts_hint
+from distill.experts.shipped import resolve_experts
 from foundation.described_file import METADATA_KEY
-from hierarchy.pretrained import resolve_decoder
+from hierarchy.pretrained import names_hint, resolve_model, task_policies_hint
 
 Act = Callable[[dict[str, np.ndarray]], np.ndarray]
 Rollout = tuple[gym.Env, Act, Callable[[], None] | None]
@@ -43,7 +47,10 @@ def file_format(path: Path) -> str:
     if path.is_dir() and (path / "clip_info.json").is_file():
         return "expert"
     if not path.exists():
-        raise FileNotFoundError(f"policy {path} does not exist (give a file, an expert directory or 'random')")
+        raise FileNotFoundError(
+            f"policy {path} does not exist (give a file, an expert directory, 'random' or a shipped name; "
+            f"{names_hint()}; {task_policies_hint()}; {experts_hint()})"
+        )
     if path.is_dir():
         raise ValueError(f"{path} is a folder but not an expert directory; name the .safetensors file inside it")
     from safetensors import safe_open
@@ -68,7 +75,9 @@ def build_rollout(
         ValueError: A policy that cannot drive ``task``, with what would.
     """
     overrides = dict(overrides or {})
-    path = resolve_decoder(policy)  # a shipped decoder's name works too; anything else stays as given
+    path = resolve_model(policy)  # a shipped decoder's or task policy's name works too; anything else stays as given
+    if not path.exists():
+        path = resolve_experts(policy)  # then a shipped expert's
     kind = file_format(path)
     if kind == "random":
         env = tasks.make(task, **overrides)

@@ -35,6 +35,14 @@ CONTROL_TIMESTEP = 0.03
 PHYSICS_TIMESTEP = 0.005
 """Seconds per MuJoCo step; six physics steps make one control step."""
 
+TRACKING_FLOOR_SIZE = 8.0
+"""Half the side of the drawn floor the tracking task uses, in metres (dm_control's and MoCapAct's 16 m square)."""
+
+DOWNSTREAM_FLOOR_SIZE = 100.0
+"""Half the side of the drawn floor of the downstream tasks: a 200 m square, so a minute of walking at the
+fastest commanded speed (1.5 m/s) stays on it. The ground's collision plane is infinite either way; the
+floor's size changes only what recordings draw, never the physics."""
+
 TORQUE_SENSOR_SCALE = 60.0
 """dm_control squashes torque sensors as ``tanh(2 * torque / 60)``."""
 
@@ -146,44 +154,53 @@ class WalkerModel:
         return mujoco.MjData(self.model)
 
 
-def build_walker_mjcf():
+def build_walker_mjcf(floor_size: float = TRACKING_FLOOR_SIZE):
     """Builds dm_control's arena with the V2020 walker attached, as the tracking task does.
 
+    Args:
+        floor_size: Half the side of the drawn floor, in metres (only drawing depends on it).
+
     Returns:
-        ``(arena, walker)``: the dm_control ``Floor`` arena (8 m x 8 m, the size
+        ``(arena, walker)``: the dm_control ``Floor`` arena (by default 16 m x 16 m, the size
         MoCapAct uses) and the attached ``CMUHumanoidPositionControlledV2020``.
     """
     from dm_control.locomotion.arenas import floors
     from dm_control.locomotion.tasks.reference_pose import utils
     from dm_control.locomotion.walkers import cmu_humanoid
 
-    arena = floors.Floor(size=(8.0, 8.0))
+    if not floor_size > 0:
+        raise ValueError(f"floor_size must be positive, got {floor_size}")
+    arena = floors.Floor(size=(floor_size, floor_size))
     walker = utils.add_walker(cmu_humanoid.CMUHumanoidPositionControlledV2020, arena)
     # Building this observable adds the four end-effector framepos sensors.
     _ = walker.observables.end_effectors_pos
     return arena, walker
 
 
-@functools.lru_cache(maxsize=1)
-def _compiled_xml() -> tuple[str, dict[str, bytes]]:
-    arena, _ = build_walker_mjcf()
+@functools.lru_cache(maxsize=2)
+def _compiled_xml(floor_size: float) -> tuple[str, dict[str, bytes]]:
+    arena, _ = build_walker_mjcf(floor_size)
     root = arena.mjcf_model
     assert root is not None
     root.option.timestep = PHYSICS_TIMESTEP  # pyright: ignore (dm_control types elements loosely)
     return root.to_xml_string(), dict(root.get_assets())
 
 
-def build_walker() -> WalkerModel:
+def build_walker(floor_size: float = TRACKING_FLOOR_SIZE) -> WalkerModel:
     """Compiles the walker model and collects its indices.
 
-    Compilation goes through dm_control's MJCF tree once per process (cached as
-    XML), so the model is identical to the one dm_control's
+    Compilation goes through dm_control's MJCF tree once per process and floor size
+    (cached as XML), so the model is identical to the one dm_control's
     ``MultiClipMocapTracking`` simulates.
+
+    Args:
+        floor_size: Half the side of the drawn floor (:data:`TRACKING_FLOOR_SIZE`, or
+            :data:`DOWNSTREAM_FLOOR_SIZE` for the downstream tasks); the simulation is the same.
 
     Returns:
         A new :class:`WalkerModel` with its own ``MjModel``.
     """
-    xml, assets = _compiled_xml()
+    xml, assets = _compiled_xml(float(floor_size))
     model = mujoco.MjModel.from_xml_string(xml, assets)
     return _index(model)
 

@@ -5,6 +5,7 @@ import pytest
 
 from mocap_hierarchy.cli import main
 from tasks.clips.format import list_clips
+from tests.tasks.test_recording import frames, verify
 
 
 def test_split_prints_the_seed_snippets(capsys):
@@ -56,8 +57,15 @@ def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys)
     args = ["quickstart", "--out", str(tmp_path), "--episodes-per-snippet", "1", "--expert-steps", "2048"]
     args += ["--expert-snippets", "SYN_stand-0-181", "--rollouts-per-snippet", "1", "--workers", "1"]
     args += ["--distill-steps", "20", "--distill-hidden", "32", "--transfer-steps", "2048", "--record-steps", "15"]
+    args += ["--skill-episodes", "2", "--skill-steps", "40", "--demo-speeds", "0.5", "1.0"]
     assert main(args) == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
+    shipped = summary["shipped"]["velocity_control"]  # the shipped policy first: 2 episodes, a 40-step demonstration
+    assert shipped["policy"] == "synthetic-v3/velocity_control" and shipped["speed"]["episodes"] == 2
+    assert [segment["commanded_speed"] for segment in shipped["demo"]["segments"]] == [0.5]  # 40 steps < 10 s
+    assert shipped["demo"]["planned_steps"] == 40 and 0 < shipped["demo"]["steps"] <= 40
+    verify(Path(shipped["recording"]))
+    assert summary["verdicts"]["shipped"]["velocity_control"]["verdict"]
     assert len(summary["playback"]) == 24
     for row in summary["playback"]:
         assert 0.0 < row["normalized_length"] <= 1.0
@@ -65,7 +73,6 @@ def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys)
     assert summary["experts"][0]["snippet"] == "SYN_stand-0-181" and summary["experts"][0]["status"] == "ok"
     assert summary["dataset"]["files"] == 1 and summary["dataset"]["episodes"] == 2
     from hierarchy import load_decoder
-    from tests.tasks.test_recording import frames, verify
 
     assert load_decoder(summary["distill"]["decoder"]).spec.hidden_layers == (32, 32, 32)
     assert summary["distill"]["steps"] == 20 and summary["distill"]["fraction_of_experts"]["snippets"] == 1

@@ -189,12 +189,14 @@ def test_model_cards_are_rendered_from_the_shipped_files():
     from hierarchy.decoder import load_decoder
     from hierarchy.latent_prior import shipped_priors
     from hierarchy.model_card import card_of
-    from hierarchy.pretrained import pretrained_decoders
+    from hierarchy.pretrained import pretrained_decoders, shipped_task_policies
 
     pages = generated_pages.model_pages()
     assert {"synthetic-v3.md", "synthetic-v3-prior.md"} <= set(pages)
     files = {f"{name}.md": path for name, path in pretrained_decoders().items()}
     files.update({f"{name}-prior.md": path for name, path in shipped_priors().items()})
+    policies = {f"task-policy-{name.replace('/', '-')}.md": path for name, path in shipped_task_policies().items()}
+    files.update(policies)
     assert set(pages) == set(files)
     for page_name, path in files.items():
         page = pages[page_name]
@@ -205,7 +207,34 @@ def test_model_cards_are_rendered_from_the_shipped_files():
         card = card_of(load_decoder(path))
         assert card is not None and card["summary"] in pages[f"{name}.md"]
     index = (DOCS / "models" / "index.md").read_text()
-    assert all(f"]({page_name})" in index for page_name in pages)  # the index lists every shipped card
+    assert f"]({generated_pages.TASK_POLICIES_PAGE})" in index
+    assert all(f"]({page_name})" in index for page_name in pages if page_name not in policies)  # every decoder card
+    listed = generated_pages.task_policies_page()
+    assert all(f"]({page_name})" in listed for page_name in policies)  # and the task policies' page every policy's
+
+
+def test_each_shipped_task_policy_gets_a_page_and_a_row_and_none_gets_none(tmp_path, monkeypatch):
+    import numpy as np
+
+    import hierarchy.pretrained as pretrained
+    from hierarchy.card_page import card_page
+    from hierarchy.model_card import package_task_policy
+    from hierarchy.task_policy import TaskPolicy, TaskPolicySpec
+
+    monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", tmp_path / "pretrained")
+    assert not any(name.startswith("task-policy-") for name in generated_pages.model_pages())
+    assert "No task policy is shipped" in generated_pages.task_policies_page()
+    decoder = {"path": "/gone/tiny-v1.safetensors", "name": "tiny-v1", "sha256": "ab" * 32, "steps_per_latent": 1}
+    spec = TaskPolicySpec("go_to_target", {}, {"target_obs": 4}, (8,), -3.0, 3.0, 10.0, 1e-8, decoder=decoder)
+    source = TaskPolicy(spec, np.zeros(4), np.ones(4), 6).save(tmp_path / "policy.safetensors")
+    shipped = tmp_path / "pretrained" / "policies" / "tiny-v1" / "go_to_target.safetensors"
+    package_task_policy(source, shipped, {"summary": "reaches targets", "scores": {"targets_reached": 0.5}})
+    pages = generated_pages.model_pages()
+    assert pages == {"task-policy-tiny-v1-go_to_target.md": card_page(shipped, generated_pages.doc_links())}
+    listed = generated_pages.task_policies_page()
+    assert "| `tiny-v1/go_to_target` | `go_to_target` | `tiny-v1` | reaches targets |" in listed
+    assert "[tiny-v1/go_to_target](task-policy-tiny-v1-go_to_target.md)" in listed
+    assert "task-policy-tiny-v1-go_to_target\n```" in listed  # in the site's table of contents
 
 
 def test_configs_reference_refuses_a_field_without_a_meaning(monkeypatch):

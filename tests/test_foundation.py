@@ -198,3 +198,26 @@ def test_field_settings_parse_to_the_fields_types():
         parse_field_setting(TransferConfig, "n_envs")
     with pytest.raises(ValueError):
         parse_field_setting(TransferConfig, "n_envs=four")
+
+
+def test_shipped_artifacts_are_named_by_their_path_and_an_existing_path_wins(tmp_path, monkeypatch):
+    from foundation.shipped import ShippedArtifacts
+
+    folder = tmp_path / "pretrained"
+    (folder / "v3").mkdir(parents=True)
+    (folder / "v3" / "walk.safetensors").write_text("policy")
+    (folder / "v3" / "notes.txt").write_text("not an artifact")
+    (folder / "v3" / "expert").mkdir()
+    policies = ShippedArtifacts(folder, "task policy", "*/*.safetensors", plural="task policies")
+    assert policies.names() == {"v3/walk": folder / "v3" / "walk.safetensors"}
+    assert policies.resolve("v3/walk") == folder / "v3" / "walk.safetensors"
+    assert policies.resolve("v3/run") == Path("v3/run")  # unknown: the loader's missing-file error reports it
+    assert policies.name_of(folder / "v3" / "walk.safetensors") == "v3/walk" and policies.name_of("x") is None
+    assert policies.hint() == "shipped task policies: v3/walk"
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "v3").mkdir()
+    (tmp_path / "v3" / "walk").write_text("the user's own file, called like a shipped name")
+    assert policies.resolve("v3/walk") == Path("v3/walk")  # a user's file is never shadowed
+    folders = ShippedArtifacts(folder, "expert", pattern="*/*", suffix="")
+    assert list(folders.names()) == ["v3/expert"]
+    assert ShippedArtifacts(tmp_path / "none", "decoder").hint() == "no decoder is shipped with this installation"

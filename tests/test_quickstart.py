@@ -25,6 +25,7 @@ from mocap_hierarchy.quickstart import (
 )
 
 STAGES = [
+    "shipped_velocity",
     "playback",
     "experts",
     "dataset",
@@ -54,16 +55,23 @@ class FakeStages:
         (shipped / "priors").mkdir()
         (shipped / "priors" / "synthetic-v2.safetensors").write_text("the prior shipped with synthetic-v2")
         (shipped / "priors" / "synthetic-v3.safetensors").write_text("the prior shipped with synthetic-v3")
+        (shipped / "policies" / "synthetic-v3").mkdir(parents=True)
+        (shipped / "policies" / "synthetic-v3" / "velocity_control.safetensors").write_text("a shipped policy")
         monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", shipped)
         monkeypatch.setattr(pipeline, "ensure_synthetic_library", lambda progress: tmp_path / "clips.h5")
         monkeypatch.setattr(pipeline, "list_clips", lambda library: {"SYN_stand": 181, "SYN_wave": 196})
-        for name in ("playback", "experts", "dataset", "distill", "transfer", "record", "plots"):
+        for name in ("shipped_velocity", "playback", "experts", "dataset", "distill", "transfer", "record", "plots"):
             monkeypatch.setattr(pipeline, f"{name}_stage", getattr(self, f"_{name}"))
 
     def _call(self, name: str) -> None:
         self.calls[name] += 1
         if name == self.fail_in:
             raise KeyboardInterrupt(f"killed in {name}")
+
+    def _shipped_velocity(self, recording: Path, config):
+        self._call("shipped_velocity")
+        recording.write_text("")
+        return shipped_velocity_run(str(recording))
 
     def _playback(self, snippets, library, config):
         self._call("playback")
@@ -166,20 +174,21 @@ def test_a_killed_stage_runs_again_and_the_finished_ones_are_read(fakes, tmp_pat
     with pytest.raises(KeyboardInterrupt):
         run_quickstart(tiny(tmp_path))
     killed = json.loads((tmp_path / "qs" / "stages" / "runs.json").read_text())
-    assert killed[0]["stages_run"] == ["playback", "experts", "dataset"] and not killed[0]["finished"]
+    assert killed[0]["stages_run"] == ["shipped_velocity", "playback", "experts", "dataset"]
+    assert not killed[0]["finished"]
     assert not (tmp_path / "qs" / "stages" / "distill.json").exists()
     fakes.fail_in = None
     summary = run_quickstart(tiny(tmp_path))
-    assert fakes.calls["playback"] == fakes.calls["experts"] == fakes.calls["dataset"] == 1
-    assert fakes.calls["distill"] == 2 and fakes.calls["plots"] == 1
-    assert summary["runs"][1]["stages_run"] == STAGES[3:]
+    assert fakes.calls["shipped_velocity"] == fakes.calls["playback"] == fakes.calls["experts"] == 1
+    assert fakes.calls["dataset"] == 1 and fakes.calls["distill"] == 2 and fakes.calls["plots"] == 1
+    assert summary["runs"][1]["stages_run"] == STAGES[4:]
     assert summary["seconds"] == pytest.approx(summary["runs"][0]["seconds"] + summary["runs"][1]["seconds"])
 
 
 def test_changed_settings_rerun_only_the_stages_they_feed(fakes, tmp_path):
     run_quickstart(tiny(tmp_path))
     summary = run_quickstart(tiny(tmp_path, transfer_steps=4096))
-    assert summary["runs"][1]["stages_run"] == STAGES[4:]
+    assert summary["runs"][1]["stages_run"] == STAGES[5:]
     assert summary["seconds"] == summary["runs"][1]["seconds"]  # a new job: the first run had other settings
 
 
@@ -263,12 +272,33 @@ def test_job_seconds_counts_the_runs_until_one_finished():
     assert job_seconds(runs, "b") == 7.0
 
 
+def shipped_velocity_run(recording: str = "s.rrd", slope: float = 0.8, mean_return: float = 520.0) -> dict:
+    """The shipped velocity-control stage's result: 20 episodes of 650 steps and a three-speed demonstration."""
+    segments = [
+        {"commanded_speed": 0.4, "speed_along": 0.35, "steps": 333},
+        {"commanded_speed": 0.8, "speed_along": 0.7, "steps": 333},
+        {"commanded_speed": 1.2, "speed_along": 0.95, "steps": 120},
+    ]
+    return {
+        "policy": "synthetic-v3/velocity_control",
+        "episodes": 20,
+        "episode_limit": 1000,
+        "mean_return": mean_return,
+        "std_return": 50.0,
+        "mean_length": 650.0,
+        "speed": {**speed(slope, still=0.5), "episodes": 20},
+        "demo": {"speeds": [0.4, 0.8, 1.2], "steps": 786, "planned_steps": 1000, "segments": segments},
+        "recording": recording,
+    }
+
+
 def fabricated_summary(
     expert_reward: float = 0.7,
     fraction: float = 0.6,
     decoder_return: float = 40.0,
     joints_return: float = 20.0,
     speed: dict | None = None,
+    shipped: dict | None = None,
 ) -> dict:
     """A summary as the quickstart writes it; without ``speed``, one from before speed tracking."""
     run = {"steps": 8192, "episodes": 5, "episode_limit": 500, "std_return": 1.0, "mean_length": 200.0}
@@ -297,6 +327,8 @@ def fabricated_summary(
         "seconds": 600.0,
         "runs": [{"seconds": 600.0, "stages_run": STAGES, "finished": True, "settings": "a"}],
     }
+    if shipped is not None:
+        summary["shipped"] = {"velocity_control": shipped}
     summary["verdicts"] = summary_verdicts(summary)
     return summary
 
@@ -383,6 +415,37 @@ def test_printed_summary_says_the_verdicts(capsys):
     assert "beats the joint-target baseline (return 40.0 vs 20.0)" in out
     assert "decoder file: runs/qs/distill/decoder.safetensors" in out
     assert "quickstart took 10.0 min" in out
+
+
+@pytest.mark.parametrize(
+    ("slope", "mean_return", "verdict"),
+    [
+        (0.8, 520.0, "follows the command"),  # 0.8 per step against standing still's 0.5
+        (0.2, 520.0, "earns more than standing still but does not choose its speed by the command yet"),
+        (0.8, 300.0, "does not follow the command yet (standing still would earn as much)"),
+    ],
+)
+def test_shipped_velocity_verdict_uses_the_follow_rule_and_is_printed_first(slope, mean_return, verdict, capsys):
+    summary = fabricated_summary(shipped=shipped_velocity_run(slope=slope, mean_return=mean_return))
+    shipped = summary["verdicts"]["shipped"]["velocity_control"]
+    assert shipped["verdict"] == verdict and shipped["speed_slope"] == slope
+    assert shipped["demo"] == [[0.4, 0.35], [0.8, 0.7], [1.2, 0.95]]
+    assert summary["verdicts"]["velocity_control"]["verdict"].startswith("does not follow")  # the small run's own
+    print_summary(summary)
+    out = capsys.readouterr().out
+    assert out.index("SHIPPED SKILLS") < out.index("THE PIPELINE AT SMALL SCALE") < out.index("snippet")
+    assert "commanded 0.4 / 0.8 / 1.2 m/s in turn: walked 0.35 / 0.70 / 0.95 m/s along the command, then fell" in out
+    assert f"velocity control (synthetic-v3/velocity_control): {verdict} (speed slope {slope:.2f}" in out
+    assert out.index("verdicts, shipped skills:") < out.index("verdicts, the pipeline at small scale:")
+    assert "recordings: s.rrd, d.rrd, j.rrd" in out
+
+
+def test_a_summary_without_shipped_skills_prints_as_before(capsys):
+    summary = fabricated_summary()
+    assert "shipped" not in summary["verdicts"]
+    print_summary(summary)
+    out = capsys.readouterr().out
+    assert "SHIPPED SKILLS" not in out and "\nverdicts:" in out
 
 
 def test_printed_times_of_a_rerun(capsys):

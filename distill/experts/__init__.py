@@ -1,4 +1,4 @@
-"""Snippet experts: settings, their directory (the paper's A.1), frozen policy, PPO training, evaluation, fan-out."""
+"""Snippet experts: settings, their directory (A.1), frozen policy, training, evaluation, fan-out, shipped experts."""
 
 from typing import TYPE_CHECKING
 
@@ -10,8 +10,10 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from distill.experts.fanout import Job, JobReport, run_jobs, summarise
     from distill.experts.files import ExpertDir, ExpertFilesError, expert_dir_for, find_experts
     from distill.experts.loading import load_expert
+    from distill.experts.packaging import PackagedExpert, PackagingError, package_expert
     from distill.experts.policy import ExpertOutput, ExpertPolicy, ExpertSpec, policy_from_sb3
     from distill.experts.sb3_import import convert_sb3_expert
+    from distill.experts.shipped import resolve_experts, shipped_experts
     from distill.experts.training import ConfigMismatchError, TrainingResult, expert_jobs, train_expert, training_envs
 
 __all__ = [
@@ -26,6 +28,8 @@ __all__ = [
     "ExpertSpec",
     "Job",
     "JobReport",
+    "PackagedExpert",
+    "PackagingError",
     "TrainingResult",
     "convert_sb3_expert",
     "evaluate_policy",
@@ -34,8 +38,11 @@ __all__ = [
     "expert_profile",
     "find_experts",
     "load_expert",
+    "package_expert",
     "policy_from_sb3",
+    "resolve_experts",
     "run_jobs",
+    "shipped_experts",
     "summarise",
     "train_expert",
     "training_envs",
@@ -55,6 +62,8 @@ __getattr__, __dir__ = lazy_exports(
         "ExpertSpec": "distill.experts.policy",
         "Job": "distill.experts.fanout",
         "JobReport": "distill.experts.fanout",
+        "PackagedExpert": "distill.experts.packaging",
+        "PackagingError": "distill.experts.packaging",
         "expert_profile": "distill.experts.config",
         "TrainingResult": "distill.experts.training",
         "convert_sb3_expert": "distill.experts.sb3_import",
@@ -63,6 +72,9 @@ __getattr__, __dir__ = lazy_exports(
         "expert_jobs": "distill.experts.training",
         "find_experts": "distill.experts.files",
         "load_expert": "distill.experts.loading",
+        "package_expert": "distill.experts.packaging",
+        "resolve_experts": "distill.experts.shipped",
+        "shipped_experts": "distill.experts.shipped",
         "policy_from_sb3": "distill.experts.policy",
         "run_jobs": "distill.experts.fanout",
         "summarise": "distill.experts.fanout",

@@ -295,6 +295,12 @@ class EvaluationConfig:
     seed: int = 0
 
 
+PACKAGING_EPISODES = 8
+"""Episodes of an expert whose states ``expert package`` compares the packaged expert's actions on."""
+
+PACKAGING_TOLERANCE = 1e-3
+"""The largest change of a mean action ``expert package`` accepts from float16 weights."""
+
 EVALUATIONS = ("eval_rsi", "eval_start")
 """Where an expert directory keeps a best policy: the best from random starts (used by default), or
 from the snippet's start (MoCapAct's ``clip_expert/train.py`` writes both)."""

@@ -14,6 +14,10 @@ One directory per snippet expert, named by the snippet id::
         checkpoint/                     resumable training state (removed once done)
         done.json                       written when training has finished
 
+A *packaged* expert directory holds only ``clip_info.json`` and ``eval_rsi/model/expert.safetensors``
+(:mod:`distill.experts.packaging` writes one; the shipped experts are such directories,
+:mod:`distill.experts.shipped`); it loads like any other.
+
 ``best_model.zip`` and ``vecnormalize.pkl`` load with stable-baselines3's own
 ``PPO.load`` and ``VecNormalize.load``, as the paper promises; both unpickle,
 so this library's own consumers (rollouts, evaluation) read the safetensors
@@ -32,6 +36,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from distill.experts.config import EVALUATIONS  # defined there (light), used and re-exported here
+from distill.experts.shipped import names_hint, resolve_experts
 from foundation.atomic import write_json
 from tasks.clips.snippets import SnippetId, parse_snippet_id
 
@@ -144,12 +149,25 @@ class ExpertDir:
 
     @property
     def policy_files(self) -> tuple[Path, Path, Path]:
-        """The paper's A.1 files every expert directory holds."""
+        """The paper's A.1 files every trained expert directory holds."""
         return self.clip_info, self.best_model, self.vecnormalize
 
+    @property
+    def packaged_files(self) -> tuple[Path, Path]:
+        """The files of a packaged expert directory: ``clip_info.json`` and our ``expert.safetensors``."""
+        return self.clip_info, self.sidecar
+
+    def is_packaged(self) -> bool:
+        """Whether it holds ``clip_info.json`` and ``expert.safetensors``: enough to load it without pickles."""
+        return all(path.is_file() for path in self.packaged_files)
+
+    def has_policy(self) -> bool:
+        """Whether it holds a loadable policy: the A.1 files, or those of a packaged expert."""
+        return self.is_packaged() or all(path.is_file() for path in self.policy_files)
+
     def is_done(self) -> bool:
-        """Whether training finished and left a complete expert."""
-        return self.done.is_file() and all(path.is_file() for path in self.policy_files)
+        """Whether training finished and left a complete expert (A.1 files, or ``expert.safetensors`` alone)."""
+        return self.done.is_file() and self.has_policy()
 
     def snippet(self) -> SnippetId:
         """The snippet from ``clip_info.json``."""
@@ -157,9 +175,13 @@ class ExpertDir:
         return SnippetId(info["clip_id"], int(info["start_step"]), int(info["end_step"]))
 
     def require_policy(self) -> None:
-        """Raises :class:`ExpertFilesError` naming the first missing A.1 file."""
+        """Raises :class:`ExpertFilesError` naming the first missing A.1 file (a packaged expert passes)."""
         if not self.root.is_dir():
-            raise ExpertFilesError(f"expert directory {self.root} does not exist")
+            raise ExpertFilesError(
+                f"expert directory {self.root} does not exist (nor is it the name of one: {names_hint()})"
+            )
+        if self.is_packaged():
+            return
         for path in self.policy_files:
             other = self.root / "eval_start" / "model"
             if not path.is_file() and path != self.clip_info and self.evaluation == "eval_rsi" and other.is_dir():
@@ -170,7 +192,8 @@ class ExpertDir:
             if not path.is_file():
                 raise ExpertFilesError(
                     f"expert {self.root.name}: {path.relative_to(self.root)} is missing; an expert directory needs "
-                    "clip_info.json and eval_rsi/model/{best_model.zip,vecnormalize.pkl} (the paper's A.1). "
+                    "clip_info.json and eval_rsi/model/{best_model.zip,vecnormalize.pkl} (the paper's A.1), or, "
+                    "packaged, clip_info.json and eval_rsi/model/expert.safetensors. "
                     f"Train it with `mocap-hierarchy expert train --snippet {self.root.name} --out {self.root.parent}`"
                 )
 
@@ -197,24 +220,31 @@ def read_clip_info(root: Path) -> dict:
 
 
 ExpertRoots = str | os.PathLike | Sequence[str | os.PathLike]
-"""One folder of expert directories (or one expert directory), or several."""
+"""One folder of expert directories (or one expert directory), or several; shipped names and groups too."""
 
 
 def find_experts(roots: ExpertRoots) -> dict[str, ExpertDir]:
     """Every expert directory at or below ``roots`` (any depth; a root may be one), keyed by snippet id.
 
-    Several roots assemble experts from several runs (e.g. each snippet's best one).
+    Hidden folders below a root (temporaries of unfinished writes) are skipped. Several roots
+    assemble experts from several runs (e.g. each snippet's best one). A root may
+    also name a shipped expert (``synthetic-v3/SYN_walk_slow-0-182``) or a group of them
+    (``synthetic-v3``: all of its experts); an existing path wins (:mod:`distill.experts.shipped`).
 
     Raises:
-        ExpertFilesError: A root does not exist or holds no expert, or two directories hold
-            experts of the same snippet (which one to use is the caller's choice: pass only it).
+        ExpertFilesError: A root does not exist (and names no shipped expert) or holds no expert, or two
+            directories hold experts of the same snippet (which one to use is the caller's choice: pass only it).
     """
-    paths = [Path(roots)] if isinstance(roots, str | os.PathLike) else [Path(r) for r in roots]
+    given = [roots] if isinstance(roots, str | os.PathLike) else list(roots)
     experts: dict[str, ExpertDir] = {}
-    for root in paths:
+    for source in given:
+        root = resolve_experts(source)
         if not root.is_dir():
-            raise ExpertFilesError(f"experts directory {root} does not exist")
-        found = [ExpertDir(info.parent) for info in sorted(root.rglob("clip_info.json"))]
+            raise ExpertFilesError(
+                f"experts directory {source} does not exist (nor is it the name of shipped experts: {names_hint()})"
+            )
+        infos = sorted(root.rglob("clip_info.json"))
+        found = [ExpertDir(info.parent) for info in infos if not _hidden(info.relative_to(root))]
         if not found:
             raise ExpertFilesError(f"no expert (no clip_info.json) under {root}")
         for expert in found:
@@ -226,6 +256,11 @@ def find_experts(roots: ExpertRoots) -> dict[str, ExpertDir]:
                 )
             experts[snippet] = expert
     return experts
+
+
+def _hidden(path: Path) -> bool:
+    """Whether a part of ``path`` is hidden (a temporary of an unfinished write, never an expert)."""
+    return any(part.startswith(".") for part in path.parts)
 
 
 def expert_dir_for(out: str | os.PathLike, snippet: str) -> ExpertDir:

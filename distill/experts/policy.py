@@ -183,9 +183,17 @@ class ExpertPolicy(nn.Module):
 
     # Files -------------------------------------------------------------------
 
-    def save(self, expert: ExpertDir) -> Path:
-        """Writes ``expert.safetensors`` (weights, normaliser, description) atomically."""
-        tensors = {f"net.{k}": v for k, v in self.state_dict().items()}
+    def save(self, expert: ExpertDir, dtype: torch.dtype = torch.float32) -> Path:
+        """Writes ``expert.safetensors`` (weights, normaliser, description) atomically.
+
+        Args:
+            expert: The directory whose ``eval_<...>/model/expert.safetensors`` is written.
+            dtype: ``torch.float32`` or ``torch.float16`` for the ``net.*`` weights (loading widens
+                float16 to float32); the normaliser's statistics stay float64.
+        """
+        if dtype not in (torch.float32, torch.float16):
+            raise ValueError(f"expert weights are stored as float32 or float16, not {dtype}")
+        tensors = {f"net.{k}": v.to(dtype) for k, v in self.state_dict().items()}
         for key in self.keys:
             tensors[f"obs_mean.{key}"] = torch.as_tensor(self._mean[key])
             tensors[f"obs_var.{key}"] = torch.as_tensor(self._var[key])
@@ -227,7 +235,8 @@ class ExpertPolicy(nn.Module):
             {k: tensors[f"obs_mean.{k}"].numpy() for k in keys},
             {k: tensors[f"obs_var.{k}"].numpy() for k in keys},
         )
-        policy.load_state_dict({k.removeprefix("net."): v for k, v in tensors.items() if k.startswith("net.")})
+        weights = {k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")}
+        policy.load_state_dict(weights)  # float16 weights widen to float32 here
         return policy
 
 

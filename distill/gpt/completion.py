@@ -1,32 +1,42 @@
-"""Motion completion with the GPT: a prompt from an expert (or the multi-clip policy), then the GPT alone.
+"""Motion completion: a prompt from an expert (or the multi-clip policy), then a completer alone.
 
-For each snippet, episodes start at the snippet's first frame in
-:class:`tasks.downstream.motion_completion.MotionCompletionEnv`. The prompt policy acts
-for ``prompt_steps`` steps while the GPT reads every state (one token per step
-into its key/value cache); then the GPT's actions drive the humanoid, with no
-reference, until it falls or the step limit ends the episode. The metric is
-the completion length (steps after the prompt), per snippet, for the
-deterministic variant (no action noise) and the stochastic one (Gaussian noise
-of the experts' 0.1 on every action, prompt included).
+The paper's measure of a motion GPT: from a context of real frames, how long does the humanoid
+keep moving without falling, with no reference? For each snippet, episodes start at several
+frames of the snippet (``CompletionConfig.starts``, spread from its first frame to the last one
+that leaves room for the prompt) in
+:class:`tasks.downstream.motion_completion.MotionCompletionEnv`. The prompt policy acts for
+``prompt_steps`` steps; then the completer's actions drive the humanoid, with no reference, until
+it falls or the step limit ends the episode. The completers (:mod:`distill.gpt.completers`) are
+the GPT, which reads every state from the episode's first step (one token per step into its
+key/value cache), and two baselines after the same prompt: ``prior`` (a decoder driven by its
+latent prior's mean) and ``hold`` (the prompt's last reference pose held). The metric is the
+completion length (steps after the prompt), per snippet, completer and variant: deterministic
+(no action noise) and stochastic (Gaussian noise of the experts' 0.1 on every action, prompt
+included). :mod:`distill.gpt.completion_report` summarises and prints it.
 """
 
 from __future__ import annotations
 
-from collections import deque
-from collections.abc import Callable
-from dataclasses import dataclass
+import os
+from collections.abc import Callable, Iterator, Mapping
+from contextlib import contextmanager
 from typing import Protocol
 
 import numpy as np
+import torch
 from tqdm.auto import tqdm
 
 from distill.experts.evaluation import expert_ref_steps
+from distill.gpt.completers import Completer, CompleterFactory, GptCompleter, completer_factories
+from distill.gpt.completion_report import CompletionResults, EpisodeRecord, summarise
 from distill.gpt.config import VARIANT_NOISE, CompletionConfig  # defined there (light), used and re-exported here
 from distill.gpt.model import MotionGpt
 from foundation.lockstep import Lockstep
+from hierarchy.decoder import LatentDecoder, load_decoder
+from hierarchy.latent_prior import LatentPrior, LatentPriorFileError, load_latent_prior, shipped_priors
 from tasks.downstream.motion_completion import MotionCompletionConfig, MotionCompletionEnv
-from tasks.observables import flat_batch
-from tasks.walker import build_walker
+from tasks.tracking.reference import SnippetReference
+from tasks.walker import DOWNSTREAM_FLOOR_SIZE, build_walker
 
 
 class PromptPolicy(Protocol):
@@ -73,38 +83,36 @@ class ExpertPrompt:
 
 
 class CompletionController:
-    """Who acts when: the prompt policy during the prompt, the GPT after it.
+    """Who acts when: the prompt policy during the prompt, the completer after it.
 
-    The GPT reads every state from each episode's first step (prompt states
-    too), so its context is full when it takes over.
+    The completer sees every step's observations (the GPT reads prompt states too, so its
+    context is full when it takes over).
 
     Args:
-        gpt: The GPT, in eval mode.
+        completer: The completer, or a GPT (completing as a :class:`~distill.gpt.completers.GptCompleter`).
         prompt: The prompt policy.
         envs: The motion-completion environments (rows of the batches).
-        context: ``cache`` (one token per step) or ``window`` (MoCapAct's recompute).
+        context: For a GPT given as ``completer``: ``cache`` (one token per step) or ``window``
+            (MoCapAct's recompute).
     """
 
-    def __init__(self, gpt: MotionGpt, prompt: PromptPolicy, envs: list[MotionCompletionEnv], context: str) -> None:
-        self.gpt, self.prompt, self.envs, self.context = gpt, prompt, envs, context
-        self.keys = tuple(dict.fromkeys([*gpt.spec.observation_sizes, *prompt.keys]))
+    def __init__(
+        self,
+        completer: Completer | MotionGpt,
+        prompt: PromptPolicy,
+        envs: list[MotionCompletionEnv],
+        context: str = "cache",
+    ) -> None:
+        if isinstance(completer, MotionGpt):
+            completer = GptCompleter(completer, len(envs), context)
+        self.completer, self.prompt, self.envs = completer, prompt, envs
+        self.keys = tuple(dict.fromkeys([*completer.keys, *prompt.keys]))
         """Observables a batch must hold."""
-        self._cache = gpt.new_cache(len(envs))
-        self._histories: list[deque] = [deque(maxlen=gpt.config.block_size) for _ in envs]
 
     def act(self, active: list[int], batch: dict[str, np.ndarray]) -> np.ndarray:
         """Actions ``(len(active), 56)`` for the environments ``active`` from their batched observations."""
-        states = flat_batch(batch, self.gpt.spec.observation_sizes)
         prompting = np.array([self.envs[i].in_prompt for i in active], dtype=bool)
-        if self.context == "cache":  # every state enters the cache, prompt states too
-            actions = self.gpt.step(states, self._cache, rows=np.asarray(active))
-        else:
-            for row, i in enumerate(active):
-                self._histories[i].append(states[row])
-            actions = np.zeros((len(active), self.gpt.spec.action_size))
-            completing = np.flatnonzero(~prompting)
-            if len(completing):
-                actions[completing] = _window_actions(self.gpt, [self._histories[active[r]] for r in completing])
+        actions = self.completer.act(active, batch, ~prompting)
         if prompting.any():
             rows = [i for i, p in zip(active, prompting, strict=True) if p]
             actions[prompting] = self.prompt.act({k: v[prompting] for k, v in batch.items()}, self.envs, rows)
@@ -112,84 +120,153 @@ class CompletionController:
 
     def new_episode(self, env: int) -> None:
         """Forgets the history of ``env``: its next state starts a new episode."""
-        self._cache.reset([env])
-        self._histories[env].clear()
+        self.completer.new_episode(env)
         self.prompt.reset(env)
 
 
-@dataclass
-class SnippetCompletion:
-    """Completion lengths of one snippet and variant.
+def start_frames(reference: SnippetReference, prompt_steps: int, count: int) -> list[int]:
+    """``count`` clip frames spread evenly from the snippet's first frame to the last that leaves room for the prompt.
 
-    Attributes:
-        lengths: Steps after the prompt, per episode.
-        fell_during_prompt: Episodes that ended before the GPT took over.
-        reached_limit: Episodes that ran into the step limit.
+    Raises:
+        ValueError: The snippet has fewer such frames than ``count``.
+    """
+    room = min(reference.last_step - prompt_steps, reference.last_step - 1)  # an episode starts before the end
+    if room < 0:
+        raise ValueError(
+            f"the prompt ({prompt_steps} steps) is longer than snippet {reference.snippet}, which has "
+            f"{reference.last_step} steps to track; use a shorter --prompt-steps or longer snippets"
+        )
+    if count > room + 1:
+        raise ValueError(
+            f"snippet {reference.snippet} has {room + 1} start frames that leave room for a {prompt_steps}-step "
+            f"prompt, fewer than the {count} starts asked for: use fewer --starts"
+        )
+    steps = np.round(np.linspace(0, room, count)).astype(int) if count > 1 else np.zeros(1, dtype=int)
+    return [reference.first_frame + int(step) for step in steps]
+
+
+class _StartsInTurn:
+    """An environment that starts each episode at the next frame of a queue shared by its siblings.
+
+    Its steps' ``info`` carry the episode's start frame (``start_frame``).
     """
 
-    lengths: list[int]
-    fell_during_prompt: int
-    reached_limit: int
+    def __init__(self, env: MotionCompletionEnv, frames: Iterator[int]) -> None:
+        self.env, self.frames, self.start = env, frames, -1
 
-    def summary(self) -> dict[str, float]:
-        """Mean, median, min and max completion length, plus counts."""
-        values = np.asarray(self.lengths, dtype=np.float64)
-        return {
-            "mean": float(values.mean()),
-            "median": float(np.median(values)),
-            "min": float(values.min()),
-            "max": float(values.max()),
-            "episodes": len(values),
-            "fell_during_prompt": self.fell_during_prompt,
-            "reached_limit": self.reached_limit,
-        }
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        del options
+        self.start = next(self.frames)
+        return self.env.reset(seed=seed, options={"start_step": self.start})
+
+    def step(self, action):
+        observation, reward, terminated, truncated, info = self.env.step(action)
+        return observation, reward, terminated, truncated, {**info, "start_frame": self.start}
+
+
+def prior_models(config: CompletionConfig) -> tuple[LatentDecoder, LatentPrior]:
+    """The ``prior`` completer's decoder and latent prior, loaded from ``config.decoder`` and ``config.latent_prior``.
+
+    Raises:
+        DecoderFileError: No such decoder file or shipped name.
+        LatentPriorFileError: No prior file, and none shipped with the decoder.
+    """
+    decoder = load_decoder(config.decoder)
+    source = config.latent_prior
+    if source is None:
+        if config.decoder not in shipped_priors() or os.path.exists(config.decoder):
+            raise LatentPriorFileError(
+                f"the prior completer needs the latent prior of decoder {config.decoder}: give --latent-prior FILE "
+                f"(priors are shipped with the decoders {', '.join(shipped_priors()) or 'none'})"
+            )
+        source = config.decoder
+    return decoder, load_latent_prior(source).freeze()
 
 
 def complete_motions(
-    gpt: MotionGpt,
-    prompts: dict[str, Callable[[int], PromptPolicy]],
+    gpt: MotionGpt | None,
+    prompts: Mapping[str, Callable[[int], PromptPolicy]],
     config: CompletionConfig,
     clips: str | None = None,
     progress: bool = False,
-) -> dict[str, dict[str, dict[str, float]]]:
-    """Completion lengths of the GPT after a prompt, per snippet and variant.
+    completers: Mapping[str, CompleterFactory] | None = None,
+) -> CompletionResults:
+    """Completion lengths after a prompt, per snippet, completer and variant.
 
     Args:
-        gpt: The GPT (put in eval mode here).
+        gpt: The GPT (put in eval mode here); None when ``config.completers`` does not ask for it.
         prompts: Snippet id -> ``factory(n_envs)`` making its prompt policy.
-        config: Episodes, prompt and limit, variants, context mode.
+        config: Episodes and starts, prompt and limit, completers, variants, context mode, the
+            ``prior`` completer's decoder.
         clips: Clip file of the snippets.
         progress: Show a progress bar.
+        completers: ``{name: factory}`` to use instead of those ``config.completers`` names (which are built
+            from ``gpt`` and ``config`` by :func:`~distill.gpt.completers.completer_factories`).
 
     Returns:
-        ``{snippet: {variant: SnippetCompletion.summary()}}``.
+        ``{snippet: {completer: {variant: summary}}}`` (:func:`distill.gpt.completion_report.summarise`).
+
+    Raises:
+        ValueError: A completer without its model, a prompt longer than a snippet, or more starts than
+            a snippet has frames for.
     """
-    gpt.eval()
-    walker = build_walker()
-    results: dict[str, dict[str, dict[str, float]]] = {}
-    jobs = [(snippet, variant) for snippet in prompts for variant in config.variants]
-    for snippet, variant in tqdm(jobs, desc="motion completion", unit="run", disable=not progress):
+    if gpt is not None:
+        gpt.eval()
+    if completers is None:
+        decoder, prior = prior_models(config) if "prior" in config.completers else (None, None)
+        completers = completer_factories(config.completers, gpt, decoder, prior, config.context)
+    jobs = [(s, c, v) for s in prompts for c in completers for v in config.variants]
+    with _torch_threads(config.torch_threads):
+        return _complete(jobs, completers, prompts, config, clips, progress)
+
+
+@contextmanager
+def _torch_threads(count: int) -> Iterator[None]:
+    """Torch uses ``count`` CPU threads inside the block (0: as it is), and its earlier number after."""
+    before = torch.get_num_threads()
+    if count > 0:
+        torch.set_num_threads(count)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
+
+
+def _complete(
+    jobs: list[tuple[str, str, str]],
+    completers: Mapping[str, CompleterFactory],
+    prompts: Mapping[str, Callable[[int], PromptPolicy]],
+    config: CompletionConfig,
+    clips: str | None,
+    progress: bool,
+) -> CompletionResults:
+    walker = build_walker(DOWNSTREAM_FLOOR_SIZE)
+    results: CompletionResults = {}
+    for snippet, name, variant in tqdm(jobs, desc="motion completion", unit="run", disable=not progress):
         n_envs = min(config.n_envs, config.episodes)
-        prompt = prompts[snippet](n_envs)
+        prompt, factory = prompts[snippet](n_envs), completers[name]
         environment = MotionCompletionConfig(
             snippets=(snippet,),
             clips=clips,
             prompt_steps=config.prompt_steps,
             max_steps=config.max_steps,
-            observables=tuple(dict.fromkeys([*gpt.spec.observation_sizes, *prompt.keys])),
+            observables=tuple(dict.fromkeys([*factory.keys, *prompt.keys])),
             ref_steps=prompt.ref_steps,
             action_noise=VARIANT_NOISE[variant],
         )
         envs = [MotionCompletionEnv(environment, walker=walker) for _ in range(n_envs)]
+        completer = factory.build(envs)
+        frames = start_frames(envs[0].references[0], config.prompt_steps, config.start_count)
+        queue = iter([frames[k % len(frames)] for k in range(config.episodes)])
         seeds = [(config.seed * 1_000_003 + i) * 2 + (variant == "stochastic") for i in range(n_envs)]
-        controller = CompletionController(gpt, prompt, envs, config.context)
-        outcome = _run(controller, Lockstep(envs, config.episodes, seeds))
-        results.setdefault(snippet, {})[variant] = outcome.summary()
+        controller = CompletionController(completer, prompt, envs)
+        records = _run(controller, Lockstep([_StartsInTurn(env, queue) for env in envs], config.episodes, seeds))
+        results.setdefault(snippet, {}).setdefault(name, {})[variant] = summarise(records)
     return results
 
 
-def _run(controller: CompletionController, lockstep: Lockstep) -> SnippetCompletion:
-    outcome = SnippetCompletion([], 0, 0)
+def _run(controller: CompletionController, lockstep: Lockstep) -> list[EpisodeRecord]:
+    records: list[EpisodeRecord] = []
     while lockstep.active:
         active = list(lockstep.active)
         actions = controller.act(active, lockstep.batch(controller.keys))
@@ -197,35 +274,13 @@ def _run(controller: CompletionController, lockstep: Lockstep) -> SnippetComplet
             if not transition.done:
                 continue
             info = transition.info
-            outcome.lengths.append(int(info["completion_length"]))
-            outcome.fell_during_prompt += bool(info["fell_during_prompt"])
-            outcome.reached_limit += bool(transition.truncated)
+            records.append(
+                EpisodeRecord(
+                    start_frame=int(info["start_frame"]),
+                    length=int(info["completion_length"]),
+                    fell_during_prompt=bool(info["fell_during_prompt"]),
+                    reached_limit=bool(transition.truncated),
+                )
+            )
             controller.new_episode(transition.env)
-    return outcome
-
-
-def _window_actions(gpt: MotionGpt, histories: list[deque]) -> np.ndarray:
-    """MoCapAct's roll-out: the last ``block_size`` states recomputed from scratch, grouped by length."""
-    actions = np.empty((len(histories), gpt.spec.action_size))
-    lengths = np.array([len(h) for h in histories])
-    for length in np.unique(lengths):
-        rows = np.flatnonzero(lengths == length)
-        actions[rows] = gpt.predict(np.stack([np.stack(histories[r]) for r in rows]))
-    return actions
-
-
-def completion_table(results: dict[str, dict[str, dict[str, float]]]) -> str:
-    """A plain-text table: one row per snippet, mean (median) completion length per variant."""
-    variants = list(dict.fromkeys(v for per in results.values() for v in per))
-    header = f"{'snippet':<28}" + "".join(f"{v + ' mean (median)':>30}" for v in variants)
-    lines = [header]
-    for snippet, per in results.items():
-        cells = []
-        for variant in variants:
-            row = per.get(variant)
-            cells.append(f"{row['mean']:>22.1f} ({row['median']:>5.1f})" if row else f"{'-':>30}")
-        lines.append(f"{snippet:<28}" + "".join(cells))
-    for variant in variants:
-        means = [per[variant]["mean"] for per in results.values() if variant in per]
-        lines.append(f"{variant}: mean completion length over {len(means)} snippets {np.mean(means):.1f} steps")
-    return "\n".join(lines)
+    return records

@@ -65,35 +65,76 @@ def default_gpt_sampler(gpt: GptConfig | None = None) -> SamplerConfig:
 VARIANT_NOISE = {"deterministic": 0.0, "stochastic": 0.1}
 """Action noise of each variant (the stochastic one uses the experts' training noise)."""
 
+COMPLETERS = ("gpt", "prior", "hold")
+"""Who may act after the prompt: the GPT, and two baselines that need no training of their own.
+
+* ``gpt``: the motion GPT, which read every state of the episode, prompt included;
+* ``prior``: a decoder driven by its latent prior's mean, ``z = mu(s)``, action ``decoder(s, z)``;
+* ``hold``: open loop, the reference pose of the frame the prompt ended on held as joint position targets.
+"""
+
+PACKAGING_TOLERANCE = 1e-3
+"""Largest change of an action that float16 weights may cause before ``gpt package`` refuses."""
+
+PACKAGING_WINDOWS = 64
+"""Token windows of a rollout dataset the float32 and float16 GPTs are compared on when packaging."""
+
 
 @dataclass(frozen=True)
 class CompletionConfig:
     """How to measure motion completion.
 
     Attributes:
-        episodes: Episodes per snippet and variant.
-        prompt_steps: Steps the prompt policy drives from the snippet's start.
+        episodes: Episodes per snippet, completer and variant.
+        starts: Start frames per snippet, spread evenly from its first frame to the last one that leaves
+            room for the prompt; the episodes take them in turn. None: one start per episode (every
+            episode its own context). 1: every episode from the snippet's first frame.
+        prompt_steps: Steps the prompt policy drives from the start frame.
         max_steps: Step limit of an episode, prompt included.
+        completers: Who acts after the prompt: ``gpt``, ``prior`` (a decoder driven by its latent
+            prior's mean) and/or ``hold`` (the last reference pose of the prompt held).
         variants: ``deterministic`` and/or ``stochastic``.
         context: ``cache`` (one token per step, the exact sliding-window GPT) or
             ``window`` (MoCapAct: recompute the last ``block_size`` steps every step).
-        n_envs: Environments stepped in lockstep (one batched GPT call per step).
+        decoder: The ``prior`` completer's decoder: a shipped decoder's name or a decoder file.
+        latent_prior: The ``prior`` completer's latent prior file; None: the prior shipped with ``decoder``.
+        n_envs: Environments stepped in lockstep (one batched call per step).
+        torch_threads: Torch CPU threads while completing; 0 keeps torch's setting. The batches are a few
+            rows, so one thread is fastest on a small CPU, and far faster than two on a busy one.
         seed: Seed of the action noise.
     """
 
     episodes: int = 10
+    starts: int | None = None
     prompt_steps: int = 32
     max_steps: int = 500
+    completers: tuple[str, ...] = COMPLETERS
     variants: tuple[str, ...] = ("deterministic", "stochastic")
     context: str = "cache"
+    decoder: str = "synthetic-v3"
+    latent_prior: str | None = None
     n_envs: int = 4
+    torch_threads: int = 1
     seed: int = 0
 
     def __post_init__(self) -> None:
         unknown = [v for v in self.variants if v not in VARIANT_NOISE]
         if unknown or not self.variants:
             raise ValueError(f"variants must be among {', '.join(VARIANT_NOISE)}, got {list(self.variants)}")
+        strangers = [c for c in self.completers if c not in COMPLETERS]
+        if strangers or not self.completers:
+            raise ValueError(f"completers must be among {', '.join(COMPLETERS)}, got {list(self.completers)}")
         if self.context not in ("cache", "window"):
             raise ValueError(f"context must be 'cache' or 'window', got {self.context!r}")
         if self.episodes < 1:
             raise ValueError("episodes must be at least 1")
+        if self.starts is not None and not 1 <= self.starts <= self.episodes:
+            raise ValueError(
+                f"starts must be between 1 and episodes ({self.episodes}), got {self.starts}: each start needs an "
+                "episode"
+            )
+
+    @property
+    def start_count(self) -> int:
+        """The number of start frames per snippet (``starts``, or one per episode)."""
+        return self.episodes if self.starts is None else self.starts

@@ -26,9 +26,11 @@ layers then see less history), available as ``context="window"`` in
 :mod:`distill.gpt.completion` for comparison.
 
 The file format (one ``.safetensors`` file with JSON, defined only here):
-tensors ``net.*`` plus ``observation_mean`` / ``observation_std``; the JSON
-holds :class:`GptSpec` (config, ordered observation keys and sizes, action
-size, provenance). Loading runs no pickled code.
+tensors ``net.*`` (float32, or float16 in a packaged file) plus ``observation_mean`` /
+``observation_std`` (float32); the JSON holds :class:`GptSpec` (config, ordered
+observation keys and sizes, action size, provenance, where a packaged file keeps its
+model card under ``provenance["model_card"]``). Loading runs no pickled code and widens
+float16 weights to float32. A shipped GPT loads by its name (:mod:`distill.gpt.shipped`).
 """
 
 from __future__ import annotations
@@ -45,10 +47,13 @@ import torch.nn.functional as F
 from torch import nn
 
 from distill.gpt.config import GptConfig  # defined there (light), used and re-exported here
+from distill.gpt.shipped import names_hint, resolve_gpt
 from foundation.described_file import read_described, write_described
 
 GPT_FORMAT = "mocap_hierarchy.motion_gpt"
 GPT_SCHEMA_VERSION = 1
+GPT_FILE = "gpt.safetensors"
+"""The GPT file's name in a training run's folder (``gpt train --out``)."""
 
 
 class GptFileError(ValueError):
@@ -368,9 +373,18 @@ class MotionGpt(nn.Module):
 
     # Files -----------------------------------------------------------------------------
 
-    def save(self, path: str | os.PathLike) -> Path:
-        """Writes weights, normaliser and :class:`GptSpec` atomically (safetensors + JSON)."""
-        tensors = {f"net.{k}": v for k, v in self.state_dict().items() if not k.startswith("observation_")}
+    def save(self, path: str | os.PathLike, weight_dtype: torch.dtype = torch.float32) -> Path:
+        """Writes weights, normaliser and :class:`GptSpec` atomically (safetensors + JSON).
+
+        Args:
+            path: The file to write.
+            weight_dtype: ``torch.float32`` or ``torch.float16`` for the ``net.*`` weights; the
+                normaliser stays float32.
+        """
+        if weight_dtype not in (torch.float32, torch.float16):
+            raise ValueError(f"GPT weights are stored as float32 or float16, not {weight_dtype}")
+        state = self.state_dict()
+        tensors = {f"net.{k}": v.to(weight_dtype) for k, v in state.items() if not k.startswith("observation_")}
         tensors["observation_mean"] = self.observation_mean
         tensors["observation_std"] = self.observation_std
         return write_described(path, tensors, GPT_FORMAT, GPT_SCHEMA_VERSION, asdict(self.spec))
@@ -383,27 +397,33 @@ def _initialise(module: nn.Module) -> None:
 
 
 def load_gpt(path: str | os.PathLike) -> MotionGpt:
-    """Reads a file written by :meth:`MotionGpt.save` (no pickle); the model is in eval mode.
+    """Reads a file written by :meth:`MotionGpt.save` (no pickle); the model is float32, in eval mode.
+
+    Args:
+        path: The file, a folder holding ``gpt.safetensors``, or a shipped GPT's name (``synthetic-v3``);
+            an existing path wins.
 
     Raises:
-        FileNotFoundError: No such file.
+        FileNotFoundError: No such file nor shipped name (the message lists the shipped names).
         GptFileError: Another format, a newer schema, corrupt content, or weights
             that do not fit the architecture the file describes.
     """
+    path = resolve_gpt(path)
+    path = path / GPT_FILE if path.is_dir() else path
     description, tensors = read_described(
         path,
         GPT_FORMAT,
         GPT_SCHEMA_VERSION,
         "motion GPT",
         GptFileError,
-        missing_hint=" (`mocap-hierarchy gpt train` writes it)",
+        missing_hint=f" (`mocap-hierarchy gpt train` writes it; {names_hint()})",
     )
     try:
         spec = GptSpec(**description)
         model = MotionGpt(spec, tensors["observation_mean"], tensors["observation_std"])
     except (TypeError, KeyError, ValueError) as error:
         raise GptFileError(f"{path}: incomplete or invalid GPT description ({error})") from None
-    weights = {k.removeprefix("net."): v for k, v in tensors.items() if k.startswith("net.")}
+    weights = {k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")}
     weights["observation_mean"], weights["observation_std"] = tensors["observation_mean"], tensors["observation_std"]
     try:
         model.load_state_dict(weights)

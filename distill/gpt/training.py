@@ -30,7 +30,7 @@ from distill.gpt.config import (  # defined there (light), used and re-exported 
     default_gpt_trainer,
 )
 from distill.gpt.cost import cpu_cost_message
-from distill.gpt.model import GptConfig, GptSpec, MotionGpt
+from distill.gpt.model import GPT_FILE, GptConfig, GptSpec, MotionGpt
 from distill.trainer import (
     TrainerConfig,
     TrainingOutcome,
@@ -39,8 +39,6 @@ from distill.trainer import (
     write_run_summary,
 )
 from foundation.provenance import provenance
-
-GPT_FILE = "gpt.safetensors"
 
 
 @dataclass(frozen=True)

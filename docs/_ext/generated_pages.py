@@ -3,9 +3,10 @@
 * ``reference/cli.md``: every ``mocap-hierarchy`` command, from the real argparse parsers;
 * ``reference/configs.md``: every settings dataclass, field by field (type, default, meaning from the
   class's ``Attributes:`` docstring section);
-* ``models/<name>.md``: one model card per shipped decoder and latent prior, rendered from the file by
-  :func:`hierarchy.card_page.card_page` (what ``mocap-hierarchy decoder card`` prints), so the page, the command
-  and the file cannot disagree.
+* ``models/<name>.md``: one model card per shipped decoder, latent prior and task policy, rendered from the file
+  by :func:`hierarchy.card_page.card_page` (what ``mocap-hierarchy decoder card`` prints), so the page, the command
+  and the file cannot disagree;
+* ``models/task-policies.md``: the shipped task policies, each with its card (or the note that none is shipped).
 
 Sphinx writes them before reading the sources (``builder-inited``); the files are ignored by git.
 ``python docs/_ext/generated_pages.py`` writes them without building the site.
@@ -223,7 +224,7 @@ def doc_links() -> Any:
 
 
 def card_of_file(path: Path) -> str:
-    """The card page of a shipped decoder or prior: what ``mocap-hierarchy decoder card`` prints, with site links.
+    """The card page of a shipped file: what ``mocap-hierarchy decoder card`` prints, with site links.
 
     Both come from one renderer, :func:`hierarchy.card_page.card_page`.
     """
@@ -233,10 +234,13 @@ def card_of_file(path: Path) -> str:
 
 
 def model_pages() -> dict[str, str]:
-    """``{file name: page}`` of every shipped decoder and prior (``NAME.md``, ``NAME-prior.md``)."""
+    """``{file name: page}`` of every shipped decoder, prior and task policy.
+
+    ``NAME.md``, ``NAME-prior.md`` and ``task-policy-DECODER-TASK.md`` (none when no task policy is shipped).
+    """
     from hierarchy.card_page import card_page_name
     from hierarchy.latent_prior import shipped_priors
-    from hierarchy.pretrained import pretrained_decoders
+    from hierarchy.pretrained import pretrained_decoders, shipped_task_policies
 
     priors = shipped_priors()
     pages = {}
@@ -244,7 +248,46 @@ def model_pages() -> dict[str, str]:
         pages[card_page_name(name)] = card_of_file(path)
         if name in priors:
             pages[card_page_name(name, "prior")] = card_of_file(priors[name])
+    for name, path in shipped_task_policies().items():
+        pages[card_page_name(name, "policy")] = card_of_file(path)
     return pages
+
+
+TASK_POLICIES_PAGE = "task-policies.md"
+"""The page under ``models/`` that lists the shipped task policies (linked from ``models/index.md``)."""
+
+
+def task_policies_page() -> str:
+    """The shipped task policies: name, task, decoder and summary of each, linked to its card."""
+    from hierarchy.card_markdown import read_file_facts, table
+    from hierarchy.card_page import card_page_name
+    from hierarchy.model_card import CARD_KEY
+    from hierarchy.pretrained import shipped_task_policies
+
+    shipped = shipped_task_policies()
+    lines = [
+        "# Shipped task policies",
+        "",
+        "High-level policies trained with `mocap-hierarchy transfer train` on a shipped decoder, shipped as package",
+        "data (`hierarchy/pretrained/policies/DECODER/TASK.safetensors`) and loadable by name wherever a policy",
+        'file is taken: `load_task_policy("DECODER/TASK")`, `mocap-hierarchy transfer eval DECODER/TASK`,',
+        "`mocap-hierarchy record --task TASK --policy DECODER/TASK`. Each finds its decoder and latent prior by",
+        "their shipped names; nothing is downloaded. How to train and package one: [the transfer",
+        "guide](../guides/transfer.md#shipped-task-policies).",
+        "",
+    ]
+    if not shipped:
+        return "\n".join([*lines, "No task policy is shipped with this version yet.", ""])
+    rows = []
+    for name, path in shipped.items():
+        description = read_file_facts(path).description
+        card = description.get("provenance", {}).get(CARD_KEY, {})
+        decoder = (description.get("decoder") or {}).get("name") or "none"
+        link = f"[{name}]({card_page_name(name, 'policy')})"
+        rows.append([f"`{name}`", f"`{description.get('task', '?')}`", f"`{decoder}`", card.get("summary", ""), link])
+    pages = [card_page_name(name, "policy").removesuffix(".md") for name in shipped]
+    lines += [*table(["task policy", "task", "decoder", "summary", "card"], rows), ""]
+    return "\n".join([*lines, "```{toctree}", ":maxdepth: 1", ":hidden:", "", *pages, "```", ""])
 
 
 # --------------------------------------------------------------------------------------------- writing
@@ -254,6 +297,7 @@ def generated_pages() -> dict[Path, str]:
     """Every generated page by its path under ``docs/``."""
     pages = {DOCS / "reference" / "cli.md": cli_page(), DOCS / "reference" / "configs.md": configs_page()}
     pages.update({DOCS / "models" / name: text for name, text in model_pages().items()})
+    pages[DOCS / "models" / TASK_POLICIES_PAGE] = task_policies_page()
     return pages
 
 

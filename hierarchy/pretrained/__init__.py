@@ -1,4 +1,4 @@
-"""Decoders shipped with the library, loadable by name (``load_decoder("synthetic-v1")``).
+"""Decoders and task policies shipped with the library, loadable by name (``load_decoder("synthetic-v1")``).
 
 Each ``NAME.safetensors`` in this folder is an ordinary decoder file (see
 :mod:`hierarchy.decoder`) whose description carries a model card under
@@ -11,6 +11,10 @@ A name is any file stem here; a path that exists always wins over a name, so a
 user's own ``synthetic-v1`` file in the working folder is never shadowed.
 ``priors/NAME.safetensors`` is the latent prior of decoder ``NAME`` where one is
 shipped (:mod:`hierarchy.latent_prior`; ``--latent-prior NAME``).
+``policies/DECODER/TASK.safetensors`` is a task policy trained on decoder
+``DECODER`` (:mod:`hierarchy.task_policy`, with a model card too), loadable as
+``DECODER/TASK``: ``load_task_policy("synthetic-v3/velocity_control")``,
+``mocap-hierarchy transfer eval synthetic-v3/velocity_control``.
 """
 
 from __future__ import annotations
@@ -18,17 +22,23 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from foundation.shipped import ShippedArtifacts
+
 PRETRAINED_FOLDER = Path(__file__).resolve().parent
 """Where the shipped decoder files live (package data)."""
 
-DECODER_SUFFIX = ".safetensors"
+POLICIES_SUBFOLDER = "policies"
+"""The folder below :data:`PRETRAINED_FOLDER` of the shipped task policies (``DECODER/TASK.safetensors``)."""
+
+
+def shipped_decoders() -> ShippedArtifacts:
+    """The shipped decoders, by name (read at each call: tests point ``PRETRAINED_FOLDER`` elsewhere)."""
+    return ShippedArtifacts(PRETRAINED_FOLDER, "decoder")
 
 
 def pretrained_decoders() -> dict[str, Path]:
     """``{name: file}`` of every shipped decoder, sorted by name."""
-    return {
-        path.name.removesuffix(DECODER_SUFFIX): path for path in sorted(PRETRAINED_FOLDER.glob(f"*{DECODER_SUFFIX}"))
-    }
+    return shipped_decoders().names()
 
 
 def resolve_decoder(source: str | os.PathLike) -> Path:
@@ -37,22 +47,53 @@ def resolve_decoder(source: str | os.PathLike) -> Path:
     Anything else comes back unchanged as a path, so the loader's missing-file
     error (which lists the shipped names) reports it.
     """
-    path = Path(source)
-    if path.exists():
-        return path
-    return pretrained_decoders().get(str(source), path)
+    return shipped_decoders().resolve(source)
 
 
 def pretrained_name(path: str | os.PathLike) -> str | None:
     """The shipped name of ``path`` when it is one of the shipped files, else None."""
-    resolved = Path(path).resolve()
-    for name, file in pretrained_decoders().items():
-        if file == resolved:
-            return name
-    return None
+    return shipped_decoders().name_of(path)
 
 
 def names_hint() -> str:
     """How messages list the shipped names (or say there are none)."""
-    names = list(pretrained_decoders())
-    return f"shipped decoders: {', '.join(names)}" if names else "no decoder is shipped with this installation"
+    return shipped_decoders().hint()
+
+
+def _task_policies() -> ShippedArtifacts:
+    """The shipped task policies (read at each call, like :func:`shipped_decoders`)."""
+    return ShippedArtifacts(
+        PRETRAINED_FOLDER / POLICIES_SUBFOLDER, "task policy", "*/*.safetensors", plural="task policies"
+    )
+
+
+def shipped_task_policies() -> dict[str, Path]:
+    """``{name: file}`` of every shipped task policy (``synthetic-v3/velocity_control``), sorted by name."""
+    return _task_policies().names()
+
+
+def resolve_task_policy(source: str | os.PathLike) -> Path:
+    """The file a task policy argument names: an existing path, else a shipped task policy's name.
+
+    Anything else comes back unchanged as a path, so the loader's missing-file error
+    (which lists the shipped names, :func:`task_policies_hint`) reports it.
+    """
+    return _task_policies().resolve(source)
+
+
+def task_policy_name(path: str | os.PathLike) -> str | None:
+    """The shipped name of ``path`` when it is one of the shipped task policies, else None."""
+    return _task_policies().name_of(path)
+
+
+def task_policies_hint() -> str:
+    """How messages list the shipped task policies' names (or say there are none)."""
+    return _task_policies().hint()
+
+
+def resolve_model(source: str | os.PathLike) -> Path:
+    """An existing path, else a shipped decoder's or task policy's name (decoder names have no ``/``).
+
+    Anything else comes back unchanged as a path.
+    """
+    return resolve_task_policy(resolve_decoder(source))

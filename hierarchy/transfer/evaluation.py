@@ -54,7 +54,8 @@ def evaluate_transfer(
     scored on the task's reward alone.
 
     Args:
-        policy_path: A ``policy.safetensors`` from :func:`hierarchy.transfer.train_transfer`.
+        policy_path: A ``policy.safetensors`` from :func:`hierarchy.transfer.train_transfer`, or a
+            shipped task policy's name (``synthetic-v3/velocity_control``).
         episodes: Episodes to run.
         decoder_path: Override of the decoder file's location (or a shipped decoder's name).
         seed: Seed of the first episode (then ``seed + 1``, ...).
@@ -107,7 +108,7 @@ def track_speed(
     Summarise the episodes with :func:`tasks.downstream.speed_tracking.summarise`.
 
     Args:
-        policy_path: A ``policy.safetensors`` trained on a velocity-control task.
+        policy_path: A ``policy.safetensors`` trained on a velocity-control task, or a shipped one's name.
         episodes: Episodes to run (seeds ``seed``, ``seed + 1``, ...).
         seed: Seed of the first episode.
         max_steps: Override of the task's episode limit.

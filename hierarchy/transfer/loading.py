@@ -40,7 +40,7 @@ def recorded_file(
 def load_policy_and_decoder(
     policy_path: str | os.PathLike, decoder_path: str | os.PathLike | None = None
 ) -> tuple[TaskPolicy, LatentDecoder | None]:
-    """A task policy and the decoder it drives (from its recorded path or shipped name unless given).
+    """A task policy (a file or a shipped name) and the decoder it drives (from its recorded path or shipped name).
 
     The file must be the one the policy was trained with, or (for policies that record it)
     one with the same :meth:`LatentDecoder.behaviour_sha256`: the same weights under another
@@ -118,7 +118,8 @@ def policy_env(
     """A task policy and the environment it acts in (its task and settings, decoder and latent prior).
 
     Args:
-        policy_path: A ``policy.safetensors`` from :func:`hierarchy.transfer.train_transfer`.
+        policy_path: A ``policy.safetensors`` from :func:`hierarchy.transfer.train_transfer`, or a
+            shipped task policy's name (``synthetic-v3/velocity_control``).
         decoder_path: Override of the decoder file's location (or a shipped decoder's name).
         task_changes: Task settings to change from the recorded ones (registered tasks only).
         env_factory: The factory a policy was trained with when its task is not registered.

@@ -18,7 +18,8 @@ def add_commands(subparsers: LazySubParsers) -> None:
         type=Path,
         nargs="+",
         required=True,
-        help="folder(s) of expert directories, or expert directories themselves; each snippet's expert found once",
+        help="folder(s) of expert directories, expert directories themselves, or shipped experts' names or groups "
+        "(synthetic-v3); each snippet's expert found once",
     )
     rollout.add_argument("--out", type=Path, required=True, help="dataset folder")
     rollout.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")

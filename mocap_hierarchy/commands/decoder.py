@@ -38,7 +38,9 @@ def add_commands(subparsers: LazySubParsers) -> None:
     card = decoder_commands.add_parser(
         "card", help="a model file's card as Markdown (decoder, latent prior or task policy), from the file itself"
     )
-    card.add_argument("file", help=f"{DECODER_HELP}, a latent prior file or a task policy file")
+    card.add_argument(
+        "file", help=f"{DECODER_HELP}, a latent prior file, or a task policy file or shipped task policy's name"
+    )
     card.add_argument("--prior", action="store_true", help="the card of the latent prior shipped with decoder NAME")
     card.add_argument(
         "--out", type=Path, default=None, help="Markdown file, or a folder: MODEL_CARD.md in it (default: print it)"

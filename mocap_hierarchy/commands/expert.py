@@ -1,4 +1,4 @@
-"""``mocap-hierarchy expert``: train one or many snippet experts, evaluate them, export one to ONNX."""
+"""``mocap-hierarchy expert``: train one or many snippet experts, evaluate them, package, export one to ONNX."""
 
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ from pathlib import Path
 
 from distill.experts.config import (
     EVALUATIONS,
+    PACKAGING_EPISODES,
+    PACKAGING_TOLERANCE,
     PROFILES,
     BatchedExpertConfig,
     EvaluationConfig,
@@ -25,10 +27,13 @@ from foundation.config_cli import (
 )
 from foundation.config_files import config_to_toml, read_config_file, setting_names, with_settings
 
+EXPERT_HELP = "an expert directory or a shipped expert's name (synthetic-v3/SYN_walk_slow-0-182)"
+"""How every command that takes one expert describes the argument."""
+
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``expert train``, ``train-many``, ``eval``, ``convert`` and ``export``."""
-    expert = subparsers.add_parser("expert", help="clip-snippet experts: train, evaluate, train many, convert")
+    """Registers ``expert train``, ``train-many``, ``eval``, ``convert``, ``package``, ``export`` and ``card``."""
+    expert = subparsers.add_parser("expert", help="clip-snippet experts: train, evaluate, train many, convert, package")
     commands = add_subcommands(expert, dest="expert_command", required=True, metavar="COMMAND")
 
     train = commands.add_parser("train", help="train one snippet expert with PPO (resumes if interrupted)")
@@ -62,7 +67,12 @@ def add_commands(subparsers: LazySubParsers) -> None:
     many.set_defaults(handler=_train_many)
 
     evaluate = commands.add_parser("eval", help="evaluate experts: normalised reward and length")
-    evaluate.add_argument("experts", type=Path, nargs="+", help="expert directories or folders of them")
+    evaluate.add_argument(
+        "experts",
+        type=Path,
+        nargs="+",
+        help="expert directories or folders of them, shipped experts' names or a group of them (synthetic-v3)",
+    )
     evaluate.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
     evaluate.add_argument("--deterministic", action="store_true", help="no action noise (same as --action-noise 0)")
     evaluate.add_argument("--trust-pickle", action="store_true", help="convert experts without our sidecar")
@@ -80,16 +90,43 @@ def add_commands(subparsers: LazySubParsers) -> None:
     convert.add_argument("--force", action="store_true", help="convert again where our file already exists")
     convert.set_defaults(handler=_convert)
 
+    package = commands.add_parser(
+        "package",
+        help="write an expert as a pickle-free directory with a model card (float16 weights by default) for shipping",
+    )
+    package.add_argument("expert", type=Path, help=EXPERT_HELP)
+    package.add_argument(
+        "out", type=Path, help="folder receiving <snippet>/ (clip_info.json and eval_rsi/model/expert.safetensors)"
+    )
+    package.add_argument(
+        "--card", type=Path, required=True, help="model card JSON: summary, commands, budgets, scores, notes"
+    )
+    package.add_argument("--float32", action="store_true", help="keep float32 weights (default: float16)")
+    package.add_argument(
+        "--tolerance",
+        type=float,
+        default=PACKAGING_TOLERANCE,
+        help="refuse, writing nothing, when float16 changes a mean action by more (default: %(default)g)",
+    )
+    package.add_argument(
+        "--episodes",
+        type=int,
+        default=PACKAGING_EPISODES,
+        help="episodes from random starts whose states the actions are compared on (default: %(default)s)",
+    )
+    package.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    package.set_defaults(handler=_package)
+
     export = commands.add_parser(
         "export", help="write an expert's mean action as one ONNX graph (observation -> action) for deployment"
     )
-    export.add_argument("expert", type=Path, help="an expert directory, or its expert.safetensors")
+    export.add_argument("expert", type=Path, help=f"{EXPERT_HELP}, or its expert.safetensors")
     export.add_argument("--onnx", type=Path, required=True, help="ONNX file to write (needs the export extra)")
     export.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to export")
     export.add_argument("--trust-pickle", action="store_true", help="convert an expert without our sidecar first")
     export.set_defaults(handler=_export)
     card = commands.add_parser("card", help="write an expert's model card as Markdown (from its expert.safetensors)")
-    card.add_argument("expert", type=Path, help="an expert directory, or its expert.safetensors")
+    card.add_argument("expert", type=Path, help=f"{EXPERT_HELP}, or its expert.safetensors")
     card.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to describe")
     card.add_argument(
         "--out", type=Path, default=None, help="Markdown file, or a folder for FOLDER/MODEL_CARD.md (default: print)"
@@ -287,13 +324,12 @@ def _export(args: argparse.Namespace) -> None:
     from distill.experts.onnx_export import expert_observation_sizes, export_expert
     from distill.experts.policy import ExpertPolicy
 
-    if not args.expert.exists():
-        raise FileNotFoundError(f"{args.expert} does not exist: give an expert directory or its expert.safetensors")
-    if args.expert.is_dir():
-        policy = load_expert(args.expert, trust_pickle=args.trust_pickle, evaluation=args.evaluation)
-        source = str(ExpertDir(args.expert, args.evaluation).sidecar.relative_to(args.expert.parent))
+    expert = _existing_expert(args.expert)
+    if expert.is_dir():
+        policy = load_expert(expert, trust_pickle=args.trust_pickle, evaluation=args.evaluation)
+        source = str(ExpertDir(expert, args.evaluation).sidecar.relative_to(expert.parent))
     else:
-        policy, source = ExpertPolicy.from_file(args.expert), args.expert.name
+        policy, source = ExpertPolicy.from_file(expert), expert.name
     written = export_expert(policy, args.onnx, source=source)
     sizes = expert_observation_sizes(policy)
     meaning = (
@@ -311,7 +347,8 @@ def _card(args: argparse.Namespace) -> None:
     from distill.experts.files import ExpertDir
     from hierarchy.card_page import card_page, write_card
 
-    source = ExpertDir(args.expert, args.evaluation).sidecar if args.expert.is_dir() else args.expert
+    expert = _existing_expert(args.expert)
+    source = ExpertDir(expert, args.evaluation).sidecar if expert.is_dir() else expert
     if not source.is_file():
         raise FileNotFoundError(
             f"{source} does not exist: give an expert directory holding expert.safetensors (`mocap-hierarchy expert "
@@ -321,3 +358,50 @@ def _card(args: argparse.Namespace) -> None:
         print(card_page(source))
         return
     print(f"wrote {write_card(source, args.out)}")
+
+
+def _existing_expert(given: Path) -> Path:
+    """The expert directory or file ``given`` names (a path, or a shipped expert's name).
+
+    Raises:
+        ExpertFilesError: Neither, with the shipped names.
+    """
+    from distill.experts.files import ExpertFilesError
+    from distill.experts.shipped import names_hint, resolve_experts
+
+    path = resolve_experts(given)
+    if not path.exists():
+        raise ExpertFilesError(
+            f"{given} does not exist: give an expert directory or its expert.safetensors, or a shipped expert's "
+            f"name ({names_hint()})"
+        )
+    return path
+
+
+def _package(args: argparse.Namespace) -> None:
+    import distill.expert_card as expert_card
+    from distill.experts.packaging import package_expert
+
+    if not args.card.is_file():
+        raise FileNotFoundError(f"model card {args.card} does not exist (a JSON mapping: summary, commands, ...)")
+    try:
+        card = json.loads(args.card.read_text())
+    except json.JSONDecodeError as error:
+        raise ValueError(f"model card {args.card} is not valid JSON: {error}") from None
+    card = expert_card.check_expert_card(card, str(args.card))
+    packaged = package_expert(
+        args.expert,
+        args.out,
+        card,
+        float16=not args.float32,
+        episodes=args.episodes,
+        tolerance=args.tolerance,
+        clips=args.clips,
+        progress=True,
+    )
+    weights = "float32" if args.float32 else "float16"
+    print(
+        f"wrote {packaged.path} ({packaged.file.stat().st_size / 1e6:.2f} MB expert.safetensors, {weights} weights); "
+        f"largest action difference from the source expert: {packaged.largest_action_difference:.2e} over "
+        f"{packaged.states} states of {args.episodes} episodes"
+    )

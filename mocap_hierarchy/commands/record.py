@@ -15,14 +15,17 @@ def add_commands(subparsers: LazySubParsers) -> None:
     record.add_argument(
         "--policy",
         required=True,
-        help="random, an expert directory, a policy/decoder/GPT .safetensors file, or a shipped decoder's name",
+        help="random, an expert directory, a policy/decoder/GPT .safetensors file, or the name of a shipped decoder "
+        "(synthetic-v3), task policy (synthetic-v3/velocity_control) or expert (synthetic-v3/SYN_walk_slow-0-182)",
     )
     record.add_argument("--out", type=Path, required=True, help="the .rrd file to write")
     record.add_argument("--episodes", type=int, default=1, help="episodes to record (default: 1)")
     record.add_argument(
         "--seed", type=int, default=0, help="seed of the episode starts and of random actions or latents (default: 0)"
     )
-    record.add_argument("--prompt", default=None, help="expert directory prompting a GPT (motion_completion)")
+    record.add_argument(
+        "--prompt", default=None, help="expert directory or shipped expert's name prompting a GPT (motion_completion)"
+    )
     record.add_argument(
         "--video", type=Path, default=None, help="also write an mp4 (needs MUJOCO_GL=egl or osmesa and the video extra)"
     )

@@ -1,4 +1,4 @@
-"""``mocap-hierarchy transfer``: high-level PPO on any registered task, its evaluation and ONNX export."""
+"""``mocap-hierarchy transfer``: high-level PPO on any registered task, its evaluation, packaging and ONNX export."""
 
 from __future__ import annotations
 
@@ -16,14 +16,17 @@ from foundation.config_cli import (
 )
 from mocap_hierarchy.commands.decoder import DECODER_HELP
 
+POLICY_HELP = "policy.safetensors, the training folder, or a shipped task policy's name (synthetic-v3/velocity_control)"
+"""How every command that takes a task policy describes the argument."""
+
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``transfer train`` (flags added when it is chosen), ``transfer eval`` and ``transfer export``."""
+    """Registers ``transfer train`` (flags added when it is chosen), ``eval``, ``package`` and ``export``."""
     transfer = subparsers.add_parser("transfer", help="high-level PPO on a task, with or without a decoder")
     transfer_commands = add_subcommands(transfer, dest="transfer_command", required=True, metavar="COMMAND")
     transfer_commands.add_lazy_parser("train", _build_train, help="train a task policy (resumes an interrupted run)")
     evaluate = transfer_commands.add_parser("eval", help="run a task policy and report the task's returns")
-    evaluate.add_argument("policy", type=Path, help="policy.safetensors (or the training folder)")
+    evaluate.add_argument("policy", type=Path, help=POLICY_HELP)
     evaluate.add_argument("--episodes", type=int, default=10, help="episodes to run (default: 10)")
     evaluate.add_argument(
         "--decoder", default=None, help="where the policy's decoder file is now (or a shipped decoder's name)"
@@ -41,10 +44,19 @@ def add_commands(subparsers: LazySubParsers) -> None:
         "speed along the command over the commanded speed, heading cosine, reward against standing still)",
     )
     evaluate.set_defaults(handler=_evaluate)
+    package = transfer_commands.add_parser(
+        "package", help="write a task policy with a model card attached (to ship it; weights unchanged)"
+    )
+    package.add_argument("policy", type=Path, help=POLICY_HELP)
+    package.add_argument(
+        "out", type=Path, help="policy file to write (hierarchy/pretrained/policies/DECODER/TASK.safetensors ships it)"
+    )
+    package.add_argument("--card", type=Path, required=True, help="model card JSON (see hierarchy.model_card)")
+    package.set_defaults(handler=_package)
     export = transfer_commands.add_parser(
         "export", help="write a task policy as one ONNX graph (observation -> action) for deployment"
     )
-    export.add_argument("policy", type=Path, help="policy.safetensors (or the training folder)")
+    export.add_argument("policy", type=Path, help=POLICY_HELP)
     export.add_argument("--onnx", type=Path, required=True, help="ONNX file to write (needs the export extra)")
     export.set_defaults(handler=_export)
 
@@ -140,14 +152,38 @@ def _evaluate_speed(path: Path, args: argparse.Namespace) -> None:
         write_json(args.json, {"returns": returns, "speed": speed.as_dict()})
 
 
-def _export(args: argparse.Namespace) -> None:
-    from hierarchy.onnx_export import composition, export_task_policy, task_policy_interface
+def _package(args: argparse.Namespace) -> None:
+    from hierarchy.model_card import package_task_policy
     from hierarchy.task_policy import load_task_policy
     from hierarchy.transfer import POLICY_FILE
 
-    path = file_in_folder(args.policy, POLICY_FILE)
+    card = json.loads(args.card.read_text())
+    path = package_task_policy(file_in_folder(args.policy, POLICY_FILE), args.out, card)
+    print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, weights as trained)")
+    decoder = load_task_policy(path).spec.decoder
+    if decoder is not None:
+        print(_finds(decoder, "decoder"))
+        if decoder.get("latent_prior"):
+            print(_finds(decoder["latent_prior"], "latent prior"))
+
+
+def _finds(facts: dict, what: str) -> str:
+    """Where a packaged policy finds a file it recorded (its decoder or latent prior) on another installation."""
+    if facts.get("name"):
+        return f"{what}: the shipped {facts['name']}, found by name where its recorded path does not exist"
+    flag = what.replace(" ", "-")
+    return f"{what}: {facts['path']}, not a shipped one: users need that file (`transfer eval --{flag} FILE`)"
+
+
+def _export(args: argparse.Namespace) -> None:
+    from hierarchy.onnx_export import composition, export_task_policy, task_policy_interface
+    from hierarchy.pretrained import resolve_task_policy, task_policy_name
+    from hierarchy.task_policy import load_task_policy
+    from hierarchy.transfer import POLICY_FILE
+
+    path = resolve_task_policy(file_in_folder(args.policy, POLICY_FILE))
     policy = load_task_policy(path)
-    written = export_task_policy(policy, args.onnx, source=path.name)
+    written = export_task_policy(policy, args.onnx, source=task_policy_name(path) or path.name)
     (observation,), (action,) = task_policy_interface(policy).values()
     print(written.summary("task policy"))
     print(

@@ -1,6 +1,13 @@
-"""The main job on the built-in data: everything the library runs end to end today.
+"""The main job on the built-in data: what the shipped skills do, then every stage of the pipeline at small scale.
 
-Stages:
+First, the shipped skills (loaded by name, nothing trained or downloaded):
+
+0. shipped velocity control: the velocity-control policy shipped on ``synthetic-v3``
+   (``shipped_velocity_policy``) evaluated on random commanded speeds (the speed-tracking
+   verdict), then walked through a sequence of commanded speeds (``demo_speeds``) and recorded.
+
+Then the pipeline, each stage with a budget far below the shipped skills' (it shows that
+every stage runs and learns, not what full budgets reach):
 
 1. clips: generate (or reuse) the synthetic clip library and split it into snippets;
 2. playback: roll the fast tracking environment on every snippet with the
@@ -38,7 +45,8 @@ not part of the quickstart (it needs a GPU to learn anything; see the README).
 
 Modules: :mod:`~mocap_hierarchy.quickstart.config` (the settings),
 :mod:`~mocap_hierarchy.quickstart.records` (stage records and the run log),
-:mod:`~mocap_hierarchy.quickstart.stages` (each stage's work; :mod:`~mocap_hierarchy.quickstart.progress`
+:mod:`~mocap_hierarchy.quickstart.shipped` (the shipped skills' stages),
+:mod:`~mocap_hierarchy.quickstart.stages` (each pipeline stage's work; :mod:`~mocap_hierarchy.quickstart.progress`
 reads PPO's training returns back),
 :mod:`~mocap_hierarchy.quickstart.plots`, :mod:`~mocap_hierarchy.quickstart.verdicts`,
 :mod:`~mocap_hierarchy.quickstart.report` (the printed summary) and
@@ -63,6 +71,7 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
         settings_digest,
     )
     from mocap_hierarchy.quickstart.report import print_summary
+    from mocap_hierarchy.quickstart.shipped import shipped_velocity_stage
     from mocap_hierarchy.quickstart.verdicts import FOLLOWS_REWARD, FOLLOWS_SLOPE, LEVEL, summary_verdicts
 
 __all__ = [
@@ -81,6 +90,7 @@ __all__ = [
     "print_summary",
     "run_quickstart",
     "settings_digest",
+    "shipped_velocity_stage",
     "summary_verdicts",
 ]
 
@@ -102,6 +112,7 @@ __getattr__, __dir__ = lazy_exports(
         "print_summary": "mocap_hierarchy.quickstart.report",
         "run_quickstart": "mocap_hierarchy.quickstart.pipeline",
         "settings_digest": "mocap_hierarchy.quickstart.records",
+        "shipped_velocity_stage": "mocap_hierarchy.quickstart.shipped",
         "summary_verdicts": "mocap_hierarchy.quickstart.verdicts",
     },
 )

@@ -29,6 +29,11 @@ class QuickstartConfig:
 
     Attributes:
         out: Output folder (a rerun reads the finished stages and resumes the others).
+        shipped_velocity_policy: The shipped velocity-control policy shown first (a shipped name or a
+            policy file).
+        demo_speeds: The speeds (m/s) its demonstration commands in order, one command period each.
+        skill_episodes: Deterministic episodes of the shipped policy's evaluation (times ``scale``).
+        skill_steps: Step limit of those episodes and of the demonstration (1000 steps = 30 s).
         episodes_per_snippet: Playback episodes rolled per snippet.
         expert_snippets: Snippets that get an expert.
         expert_steps: Environment steps per expert.
@@ -54,6 +59,10 @@ class QuickstartConfig:
     """
 
     out: str = "runs/quickstart"
+    shipped_velocity_policy: str = "synthetic-v3/velocity_control"
+    demo_speeds: tuple[float, ...] = (0.4, 0.8, 1.2)
+    skill_episodes: int = 20
+    skill_steps: int = 1000
     episodes_per_snippet: int = 3
     expert_snippets: tuple[str, ...] = ("SYN_wave-0-196", "SYN_walk_slow-0-182", "SYN_squat-0-155")
     expert_steps: int = 16_384

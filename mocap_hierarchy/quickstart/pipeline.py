@@ -14,6 +14,7 @@ from mocap_hierarchy.quickstart.config import MODE_LABELS, NO_PRIOR, OWN_DECODER
 from mocap_hierarchy.quickstart.plots import plots_stage
 from mocap_hierarchy.quickstart.records import STAGES_DIR, RunLog, StageRunner, settings_digest
 from mocap_hierarchy.quickstart.report import print_summary
+from mocap_hierarchy.quickstart.shipped import shipped_velocity_stage
 from mocap_hierarchy.quickstart.stages import (
     dataset_stage,
     distill_stage,
@@ -62,6 +63,16 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
     def pick(*names: str) -> dict[str, Any]:
         return {name: settings[name] for name in names}
 
+    shipped_velocity = stages.run(
+        "shipped_velocity",
+        "shipped velocity-control policy",
+        {
+            **pick("shipped_velocity_policy", "demo_speeds", "skill_episodes", "skill_steps", "scale", "seed"),
+            "policy": _policy_digest(config),
+        },
+        functools.partial(shipped_velocity_stage, out / "shipped_velocity_control.rrd", config),
+        outputs=lambda result: [result["recording"]],
+    )
     playback = stages.run(
         "playback",
         "playback",
@@ -132,6 +143,7 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
     )
     return {
         "config": settings,
+        "shipped": {"velocity_control": shipped_velocity},
         "clip_file": str(library),
         "playback": playback["rows"],
         "env_steps_per_second": playback["env_steps_per_second"],
@@ -144,6 +156,23 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
         "recordings": recordings,
         "plots": plots,
     }
+
+
+def _policy_digest(config: QuickstartConfig) -> str:
+    """The SHA-256 of the shipped velocity-control policy's file (a new file reruns its stage).
+
+    Raises:
+        FileNotFoundError: ``shipped_velocity_policy`` names neither a shipped policy nor a file.
+    """
+    from hierarchy.pretrained import resolve_task_policy, task_policies_hint
+
+    path = resolve_task_policy(config.shipped_velocity_policy)
+    if not path.is_file():
+        raise FileNotFoundError(
+            f"shipped_velocity_policy {config.shipped_velocity_policy!r} is neither a task policy file nor a shipped "
+            f"name ({task_policies_hint()})"
+        )
+    return file_sha256(path)
 
 
 def _transfer_decoder(config: QuickstartConfig, distilled: dict) -> dict[str, str]:

@@ -9,8 +9,13 @@ from tasks.tracking.metrics import TRACKING_METRICS, aggregate, format_metrics
 
 
 def print_summary(summary: dict) -> None:
-    """Prints the table, the figures and the verdicts of a summary."""
+    """Prints the shipped skills, then the pipeline's table and figures, then the verdicts of a summary."""
     verdicts = summary["verdicts"]
+    shipped = summary.get("shipped", {})
+    if shipped:
+        print("\nSHIPPED SKILLS (trained far longer than this run; loaded by name, nothing downloaded)")
+        _print_shipped_velocity(shipped["velocity_control"])
+        print("\nTHE PIPELINE AT SMALL SCALE (every stage runs and learns; budgets far below the shipped skills')")
     playback = {row["snippet"]: row for row in summary["playback"]}
     print(
         f"\n{'snippet':<26}{'playback reward':>16}{'length':>8}{'G-MPJPE':>9}{'expert reward':>15}{'length':>8}"
@@ -74,7 +79,15 @@ def print_summary(summary: dict) -> None:
         prior = summary.get("transfer_prior")
         around = f", acting around the latent prior {prior['name']} ({prior['path']})" if prior else ""
         print(f"velocity control ran on the decoder {used['name']} ({used['path']}){around}")
-    print("\nverdicts:")
+    if "shipped" in verdicts:
+        velocity = verdicts["shipped"]["velocity_control"]
+        print("\nverdicts, shipped skills:")
+        print(
+            f"  velocity control ({velocity['policy']}): {velocity['verdict']} (speed slope "
+            f"{velocity['speed_slope']:.2f}, needs {velocity['follows_from_slope']:g}; reward per step "
+            f"{velocity['reward_per_step']:.3f}, standing still {velocity['still_reward_per_step']:.3f})"
+        )
+    print("\nverdicts, the pipeline at small scale:" if "shipped" in verdicts else "\nverdicts:")
     groups: dict[str, list[str]] = {}
     for snippet, verdict in verdicts["experts"].items():
         groups.setdefault(verdict["verdict"], []).append(snippet)
@@ -101,11 +114,31 @@ def print_summary(summary: dict) -> None:
             f"; it {velocity['against_baseline']} (return {velocity['mean_return']:.1f} vs "
             f"{velocity['baseline_mean_return']:.1f})"
         )
+    if "learning" in velocity:
+        line += f"; {velocity['learning']}"
     print(line)
-    print(f"\nrecordings: {', '.join(summary['recordings'].values())} (mocap-hierarchy view FILE)")
+    recordings = [*([shipped["velocity_control"]["recording"]] if shipped else []), *summary["recordings"].values()]
+    print(f"\nrecordings: {', '.join(recordings)} (mocap-hierarchy view FILE)")
     print(f"plots: {', '.join(summary['plots'])}")
     print(f"tracking environment: {summary['env_steps_per_second']:.0f} env steps/s (one process)")
     print(_time_line(summary))
+
+
+def _print_shipped_velocity(run: dict) -> None:
+    """The shipped velocity-control policy's evaluation and demonstration."""
+    speed = run["speed"]
+    print(
+        f"velocity control, {run['policy']}: {run['episodes']} deterministic episodes of random commanded speeds "
+        f"(at most {run['episode_limit']} steps): speed along the command over commanded speed, slope "
+        f"{speed['slope']:.2f} (r {speed['correlation']:.2f}); heading cosine {speed['heading_cosine']:.2f}; "
+        f"reward per step {reward_per_step(run):.3f} (standing still {speed['still_reward_per_step']:.3f}); "
+        f"{run['mean_length']:.0f} steps on average"
+    )
+    demo = run["demo"]
+    walked = " / ".join(f"{segment['speed_along']:.2f}" for segment in demo["segments"])
+    asked = " / ".join(f"{segment['commanded_speed']:g}" for segment in demo["segments"])
+    ending = "" if demo["steps"] >= demo["planned_steps"] else f", then fell after {demo['steps']} steps"
+    print(f"  commanded {asked} m/s in turn: walked {walked} m/s along the command{ending} ({run['recording']})")
 
 
 def _millimetres(row: dict) -> str:

@@ -39,14 +39,22 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
     - ``velocity_control``: whether the decoder-based policy follows the command: it
       earns more per step than standing still would and its speed rises with the
       commanded speed (slope at least :data:`FOLLOWS_SLOPE`), from the deterministic
-      evaluation; how its return compares with the joint-target baseline's, and the
-      rise of its training return.
+      evaluation; how its return compares with the joint-target baseline's, and
+      whether its training return rose (``learning``);
+    - ``shipped``: the same velocity-control rule for the shipped policy (``velocity_control``),
+      in summaries that have the shipped-skills part.
+
+    The first three judge the pipeline run at small scale; ``shipped`` judges skills trained far longer.
     """
-    return {
+    verdicts = {
         "experts": _expert_verdicts(summary["playback"], summary["experts"]),
         "multi_clip": _multi_clip_verdict(summary["distill"]["fraction_of_experts"]),
         "velocity_control": _velocity_verdict(summary["transfer"], _decoder_path(summary)),
     }
+    shipped = summary.get("shipped", {})
+    if "velocity_control" in shipped:
+        verdicts["shipped"] = {"velocity_control": _shipped_velocity_verdict(shipped["velocity_control"])}
+    return verdicts
 
 
 def _expert_verdicts(playback_rows: list[dict], expert_rows: list[dict]) -> dict[str, dict[str, Any]]:
@@ -100,6 +108,7 @@ def _velocity_verdict(transfer: dict, decoder: str) -> dict[str, Any]:
         "decoder": decoder,
         "training_return_first": run.get("training_return_first"),
         "training_return_last": run.get("training_return_last"),
+        "learning": _learning(run.get("training_return_first"), run.get("training_return_last")),
     }
     if "speed" in run:
         speed = run["speed"]
@@ -120,6 +129,32 @@ def _velocity_verdict(transfer: dict, decoder: str) -> dict[str, Any]:
         verdict["baseline_reward_per_step"] = reward_per_step(baseline)
         verdict["baseline_mean_return"] = baseline["mean_return"]
     return verdict
+
+
+def _learning(first: float | None, last: float | None) -> str:
+    """Whether a PPO run's training return rose from its first update to its last, in words."""
+    if first is None or last is None:
+        return "no training returns recorded"
+    return "its training return rose" if last > first else "its training return did not rise"
+
+
+def _shipped_velocity_verdict(run: dict) -> dict[str, Any]:
+    """The shipped velocity-control policy: the follow rule on its evaluation, and its demonstration."""
+    per_step = reward_per_step(run)
+    speed = run["speed"]
+    return {
+        "verdict": _follows(run, per_step),
+        "policy": run["policy"],
+        "reward_per_step": per_step,
+        "still_reward_per_step": speed["still_reward_per_step"],
+        "speed_slope": speed["slope"],
+        "speed_correlation": speed["correlation"],
+        "heading_cosine": speed["heading_cosine"],
+        "follows_from_slope": FOLLOWS_SLOPE,
+        "mean_length": run["mean_length"],
+        "episode_limit": run["episode_limit"],
+        "demo": [[segment["commanded_speed"], segment["speed_along"]] for segment in run["demo"]["segments"]],
+    }
 
 
 def _follows(run: dict, per_step: float) -> str:

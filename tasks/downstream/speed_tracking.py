@@ -16,6 +16,7 @@ command is followed:
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
@@ -117,6 +118,34 @@ def run_episode(env: Any, act: Callable[[Any], np.ndarray], seed: int) -> SpeedE
         rewards.append(float(reward) / k)
         done = terminated or truncated
     return SpeedEpisode(np.array(commanded), np.array(actual), np.array(rewards), float(task.config.eta), k)
+
+
+@dataclass(frozen=True)
+class CommandSegment:
+    """The steps of one episode under one command.
+
+    Attributes:
+        commanded_speed: The commanded speed, m/s.
+        speed_along: Mean speed along the commanded direction over the segment, m/s.
+        steps: High-level steps the segment lasted (it ends early if the episode does).
+    """
+
+    commanded_speed: float
+    speed_along: float
+    steps: int
+
+
+def command_segments(episode: SpeedEpisode) -> list[CommandSegment]:
+    """The episode cut where the command changes: what was asked and what the walker did, per command."""
+    if not len(episode.rewards):
+        return []
+    change = np.flatnonzero(np.any(np.diff(episode.commanded, axis=0) != 0, axis=1)) + 1
+    bounds = [0, *change.tolist(), len(episode.rewards)]
+    along = episode.speed_along_command()
+    return [
+        CommandSegment(float(np.linalg.norm(episode.commanded[start])), float(along[start:end].mean()), end - start)
+        for start, end in itertools.pairwise(bounds)
+    ]
 
 
 def episode_points(episodes: list[SpeedEpisode]) -> tuple[np.ndarray, np.ndarray]:

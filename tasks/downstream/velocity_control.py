@@ -72,6 +72,10 @@ class VelocityControlConfig:
             axis, the way the walker faces at reset unless ``random_heading``:
             ``0`` commands speeds straight ahead only, a task whose skills (stand,
             walk slow, walk fast) the synthetic decoders have without turning.
+        speed_schedule: None (the paper): speeds are drawn at random. A sequence of speeds
+            (m/s) commands them in order instead, one per command period, starting over after
+            the last: a scripted demonstration (the quickstart's slow, medium, fast walk).
+            Headings are drawn as above.
     """
 
     max_speed: float = 4.5
@@ -81,6 +85,7 @@ class VelocityControlConfig:
     max_steps: int = 2000
     random_heading: bool = False
     heading_spread: float | None = None
+    speed_schedule: tuple[float, ...] | None = None
 
 
 class VelocityControlEnv(WalkerTaskEnv):
@@ -92,12 +97,19 @@ class VelocityControlEnv(WalkerTaskEnv):
             raise ValueError("need max_speed >= 0, eta > 0 and command_seconds > 0")
         if config.heading_spread is not None and not 0.0 <= config.heading_spread <= np.pi:
             raise ValueError(f"heading_spread must be None or in [0, pi] radians, got {config.heading_spread}")
+        if config.speed_schedule is not None and (
+            not config.speed_schedule or any(not 0.0 <= speed < float("inf") for speed in config.speed_schedule)
+        ):
+            raise ValueError(
+                f"speed_schedule must be None or non-empty finite speeds >= 0, got {config.speed_schedule}"
+            )
         velocity_sizes = {k: EXTRA_PROPRIOCEPTION[k] for k in VELOCITY_OBSERVABLES}
         super().__init__({**velocity_sizes, "target_obs": 4}, config.max_steps, walker)
         self._command_steps = max(1, round(config.command_seconds / CONTROL_TIMESTEP))
         self._speed = 0.0
         self._heading = 0.0
         self._command_age = 0
+        self._commands = 0
 
     @property
     def target_velocity(self) -> np.ndarray:
@@ -109,7 +121,12 @@ class VelocityControlEnv(WalkerTaskEnv):
         return np.concatenate(list(self._proprioception.read_all(self.data, VELOCITY_OBSERVABLES).values()))
 
     def _new_command(self) -> None:
-        self._speed = float(self.np_random.uniform(0.0, self.config.max_speed))
+        schedule = self.config.speed_schedule
+        if schedule is None:
+            self._speed = float(self.np_random.uniform(0.0, self.config.max_speed))
+        else:
+            self._speed = float(schedule[self._commands % len(schedule)])
+        self._commands += 1
         spread = self.config.heading_spread
         if spread is None:
             self._heading = float(self.np_random.uniform(0.0, 2 * np.pi))
@@ -118,6 +135,7 @@ class VelocityControlEnv(WalkerTaskEnv):
         self._command_age = 0
 
     def _task_reset(self) -> tuple[np.ndarray, float]:
+        self._commands = 0
         self._new_command()
         heading = float(self.np_random.uniform(0, 2 * np.pi)) if self.config.random_heading else 0.0
         return np.zeros(2), heading

@@ -27,7 +27,7 @@ import numpy as np
 
 from tasks.observables import PROPRIOCEPTION, Proprioception
 from tasks.simulation import checked_action, control_step, disallowed_contact, forward_without_actuation
-from tasks.walker import CONTROL_TIMESTEP, WalkerModel, build_walker
+from tasks.walker import CONTROL_TIMESTEP, DOWNSTREAM_FLOOR_SIZE, WalkerModel, build_walker
 
 
 @functools.lru_cache(maxsize=1)
@@ -56,7 +56,8 @@ class WalkerTaskEnv(gym.Env):
     Args:
         task_observations: Sizes of the task's own observation keys.
         max_steps: Episode length limit (truncation).
-        walker: A compiled walker to reuse.
+        walker: A compiled walker to reuse; by default one with the downstream tasks' large drawn floor
+            (:data:`tasks.walker.DOWNSTREAM_FLOOR_SIZE`).
     """
 
     metadata: ClassVar[dict] = {"render_modes": [], "render_fps": round(1 / CONTROL_TIMESTEP)}
@@ -64,7 +65,7 @@ class WalkerTaskEnv(gym.Env):
     def __init__(self, task_observations: dict[str, int], max_steps: int, walker: WalkerModel | None = None) -> None:
         if max_steps < 1:
             raise ValueError("max_steps must be at least 1")
-        self.walker = walker or build_walker()
+        self.walker = walker or build_walker(DOWNSTREAM_FLOOR_SIZE)
         self._model = self.walker.model
         self._data = self.walker.new_data()
         self._proprioception = Proprioception(self.walker)

@@ -139,3 +139,40 @@ def test_go_to_target_approach_reward_restarts_from_a_moved_target(clip_library)
         assert info["task_reward"] == 1.0 and abs(value - 1.0) < 100.0 * 0.05
     assert not np.allclose(env.target, first)
     assert info["task_return"] == 12.0
+
+
+def test_downstream_tasks_draw_a_larger_floor_and_simulate_exactly_as_on_the_tracking_floor(clip_library):
+    from tasks.walker import DOWNSTREAM_FLOOR_SIZE, TRACKING_FLOOR_SIZE, build_walker
+
+    env = VelocityControlEnv(VelocityControlConfig(max_steps=40))
+    plane = env.unwrapped.walker.floor_geom
+    assert env.unwrapped.walker.model.geom_size[plane, 0] == DOWNSTREAM_FLOOR_SIZE
+    small = VelocityControlEnv(VelocityControlConfig(max_steps=40), walker=build_walker())
+    assert small.walker.model.geom_size[plane, 0] == TRACKING_FLOOR_SIZE
+    actions = np.random.default_rng(0).uniform(-1, 1, (40, 56))
+    for run in (env, small):
+        run.reset(seed=5)
+    for action in actions:  # random actions fall onto the floor: contacts with the plane are compared too
+        big_step, small_step = env.step(action), small.step(action)
+        np.testing.assert_array_equal(env.data.qpos, small.data.qpos)
+        assert big_step[1:3] == small_step[1:3]
+        if big_step[2]:
+            break
+    assert big_step[2], "random actions should make the walker fall within 40 steps"
+
+
+def test_a_speed_schedule_commands_its_speeds_in_order_and_starts_over(clip_library):
+    env = tasks.make("velocity_control", command_seconds=0.09, speed_schedule=[0.4, 0.8, 1.2], heading_spread=0.0)
+    speeds = []
+    for seed in (0, 1):  # a reset starts the schedule again
+        env.reset(seed=seed)
+        speeds.append(float(np.linalg.norm(env.unwrapped.target_velocity)))
+        for _ in range(11):
+            *_, info = env.step(np.zeros(56))
+            speeds.append(float(np.linalg.norm(info["target_velocity"])))
+    expected = [0.4, 0.4, 0.4, 0.8, 0.8, 0.8, 1.2, 1.2, 1.2, 0.4, 0.4, 0.4]
+    np.testing.assert_allclose(speeds, expected * 2)
+    with pytest.raises(ValueError, match="speed_schedule"):
+        VelocityControlEnv(VelocityControlConfig(speed_schedule=()))
+    with pytest.raises(ValueError, match="speed_schedule"):
+        VelocityControlEnv(VelocityControlConfig(speed_schedule=(0.5, float("nan"))))

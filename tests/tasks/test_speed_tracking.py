@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import tasks
-from tasks.downstream.speed_tracking import SpeedEpisode, run_episode, summarise
+from tasks.downstream.speed_tracking import SpeedEpisode, command_segments, run_episode, summarise
 
 
 def straight_episode(commanded_speed: float, actual_speed: float, steps: int = 10, eta: float = 0.75) -> SpeedEpisode:
@@ -33,6 +33,15 @@ def test_one_pace_whatever_is_asked_has_slope_zero_and_going_backwards_counts_ag
 def test_speed_along_the_command_is_the_projection_and_zero_without_a_command():
     episode = SpeedEpisode(np.array([[2.0, 0.0], [0.0, 0.0]]), np.array([[1.0, 3.0], [1.0, 1.0]]), np.ones(2), 0.75)
     np.testing.assert_allclose(episode.speed_along_command(), [1.0, 0.0])
+
+
+def test_an_episode_splits_where_the_command_changes():
+    commanded = np.array([[0.4, 0.0]] * 3 + [[0.0, 0.8]] * 2 + [[0.4, 0.0]])
+    actual = np.array([[0.2, 0.0], [0.4, 0.0], [0.6, 5.0], [9.0, 0.5], [0.0, 1.5], [-0.4, 0.0]])
+    segments = command_segments(SpeedEpisode(commanded, actual, np.ones(6), 0.75))
+    assert [(s.commanded_speed, s.steps) for s in segments] == [(0.4, 3), (0.8, 2), (0.4, 1)]
+    np.testing.assert_allclose([s.speed_along for s in segments], [0.4, 1.0, -0.4])
+    assert command_segments(SpeedEpisode(np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), 0.75)) == []
 
 
 def test_no_spread_of_speeds_gives_no_slope_and_a_latent_held_k_steps_counts_control_steps():

@@ -1,0 +1,70 @@
+"""The quickstart's first part: what the shipped artifacts can do, before anything is trained.
+
+Each function runs one stage on artifacts that come with the library (loaded by name,
+nothing downloaded) and returns its result as JSON; the verdicts are in
+:mod:`mocap_hierarchy.quickstart.verdicts`.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mocap_hierarchy.quickstart.config import QuickstartConfig
+
+
+def shipped_velocity_stage(recording: Path, config: QuickstartConfig) -> dict[str, Any]:
+    """The shipped velocity-control policy: its speed tracking, then a scripted walk through ``demo_speeds``.
+
+    The verdict's figures come from ``config.skill_episodes`` deterministic episodes of the policy's own task
+    (random commanded speeds); the demonstration is one more episode commanding ``config.demo_speeds`` in
+    order, one command period (10 s) each, read per command and recorded to ``recording``.
+    """
+    from hierarchy.transfer import track_speed
+    from hierarchy.transfer.loading import policy_env
+    from mocap_hierarchy.record import record
+    from tasks.downstream.speed_tracking import command_segments, run_episode, summarise
+
+    name = config.shipped_velocity_policy
+    episodes = max(1, round(config.skill_episodes * config.scale))
+    print(f"\nshipped velocity-control policy {name}: {episodes} episodes of random commands, deterministic")
+    runs = track_speed(name, episodes=episodes, seed=config.seed + 2000, max_steps=config.skill_steps, progress=True)
+    summary = summarise(runs)
+    demo_changes = {"speed_schedule": list(config.demo_speeds), "max_steps": _demo_steps(config)}
+    policy, env = policy_env(name, task_changes=demo_changes)
+    demo = run_episode(env, lambda observation: policy.act({k: v[None] for k, v in observation.items()})[0], 0)
+    print(f"recording the walk through commanded speeds {', '.join(f'{v:g}' for v in config.demo_speeds)} m/s")
+    record("velocity_control", name, recording, seed=0, overrides=demo_changes)
+    returns = [run.episode_return for run in runs]
+    return {
+        "policy": name,
+        "episodes": episodes,
+        "episode_limit": config.skill_steps,
+        "mean_return": float(np.mean(returns)),
+        "std_return": float(np.std(returns)),
+        "mean_length": float(np.mean([run.control_steps for run in runs])),
+        "speed": summary.as_dict(),
+        "demo": {
+            "speeds": list(config.demo_speeds),
+            "steps": demo.control_steps,
+            "planned_steps": demo_changes["max_steps"],
+            "segments": [vars(segment) for segment in command_segments(demo)],
+        },
+        "recording": str(recording),
+    }
+
+
+def _demo_steps(config: QuickstartConfig) -> int:
+    """Control steps of the demonstration: a command period of the policy's task per speed, at most ``skill_steps``."""
+    from hierarchy.task_policy import load_task_policy
+    from tasks.downstream.velocity_control import VelocityControlConfig
+    from tasks.walker import CONTROL_TIMESTEP
+
+    overrides = load_task_policy(config.shipped_velocity_policy).spec.task_overrides
+    seconds = float(overrides.get("command_seconds", VelocityControlConfig.command_seconds))
+    # A command lasts its period from the reset on, so the first one has a step less than the others (the
+    # environment ages it before the first reward); one step less in all keeps the next one out.
+    period = max(1, round(seconds / CONTROL_TIMESTEP))
+    return min(config.skill_steps, len(config.demo_speeds) * period - 1)
