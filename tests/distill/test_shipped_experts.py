@@ -230,12 +230,24 @@ def test_expert_eval_card_and_export_take_a_shipped_name(ship, snippet, tmp_path
     assert (tmp_path / "expert.onnx").is_file() and f"expert {snippet}" in capsys.readouterr().out
 
 
-def test_rollout_takes_a_shipped_group(ship, snippet, tmp_path, capsys):
+def test_the_decoder_rebuild_sequence_runs_from_a_shipped_group(ship, snippet, tmp_path, capsys):
+    """docs/guides/synthetic-release.md's sequence (rollouts, distillation, evaluation) at a tiny budget."""
     from distill.dataset.reader import RolloutDataset
+    from hierarchy import load_decoder
 
-    dataset = tmp_path / "dataset"
+    dataset, distilled = tmp_path / "dataset", tmp_path / "distill"
     assert main(["rollout", "--experts", GROUP, "--out", str(dataset), "--n-start", "1", "--n-rsi", "1"]) == 0
     assert RolloutDataset(dataset).snippets() == [snippet, OTHER]
+    small = ["--latent-size", "4", "--encoder-layers", "16", "16", "--decoder-layers", "16", "16", "16"]
+    train = ["distill", "train", "--data", str(dataset), "--out", str(distilled), "--steps", "4", "--batch-size", "4"]
+    train += ["--window", "4"]  # the tiny experts fall within 30 steps
+    assert main([*train, *small]) == 0
+    assert load_decoder(distilled / "decoder.safetensors").spec.latent_size == 4
+    scores = tmp_path / "distill_eval.json"
+    evaluate = ["distill", "eval", str(distilled), "--data", str(dataset), "--episodes", "1", "--json", str(scores)]
+    assert main(evaluate) == 0
+    evaluation = json.loads(scores.read_text())
+    assert set(evaluation["policy"]) == {snippet, OTHER} and "normalized_reward" in evaluation["fraction"]
 
 
 def test_record_and_gpt_complete_take_shipped_names(ship, snippet, tmp_path, capsys):
