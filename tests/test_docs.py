@@ -159,12 +159,14 @@ def test_a_command_line_with_an_unknown_flag_is_refused(tmp_path, monkeypatch):
 
 def test_a_quoted_figure_that_differs_from_its_json_is_found(tmp_path, monkeypatch):
     monkeypatch.setattr(docs_checks, "ROOT", tmp_path)
-    (tmp_path / "r.json").write_text(json.dumps({"a": {"b": [0.12345, 2.0]}}))
-    good = "<!-- value: r.json a.b.0 -->0.123<!-- /value -->"
+    (tmp_path / "r.json").write_text(json.dumps({"a": {"b": [0.12345, 2.0]}, "v": "follows the command"}))
+    good = "<!-- value: r.json a.b.0 -->0.123<!-- /value --> <!-- value: r.json v -->follows the command<!-- /value -->"
     bad = "<!-- value: r.json a.b.1 -->2.1<!-- /value --> <!-- value: r.json a.c -->1<!-- /value -->"
-    page = planted(tmp_path, f"# P\n\n{good} {bad}\n")
+    words = "<!-- value: r.json v -->follows<!-- /value -->"
+    page = planted(tmp_path, f"# P\n\n{good} {bad} {words}\n")
     problems = docs_checks.check_quoted_values([page])
-    assert len(problems) == 2 and "shows 2.1" in problems[0] and "cannot be read" in problems[1]
+    assert len(problems) == 3 and "shows 2.1" in problems[0] and "cannot be read" in problems[1]
+    assert "shows follows, the file holds follows the command" in problems[2]
 
 
 def test_slugs_follow_github_and_repeat_with_suffixes():

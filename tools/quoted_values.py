@@ -22,8 +22,10 @@ def lookup(record: Any, key: str) -> Any:
     return record
 
 
-def shown_as(value: float, shown: str) -> str:
-    """``value`` written as ``shown`` is: the same number of decimals, thousands separated when it is."""
+def shown_as(value: float | str, shown: str) -> str:
+    """``value`` written as ``shown`` is: the same number of decimals, thousands separated when it is; text as is."""
+    if isinstance(value, str):  # a verdict in words
+        return value
     decimals = len(shown.split(".")[1]) if "." in shown else 0
     return f"{float(value):,.{decimals}f}" if "," in shown else f"{float(value):.{decimals}f}"
 
