@@ -33,6 +33,8 @@ from hierarchy.card_markdown import (
     CardPage,
     artifact_lines,
     bullets,
+    float16_note,
+    in_card_order,
     interface_lines,
     layers_text,
     opening_line,
@@ -198,22 +200,19 @@ def expert_card(context: CardContext) -> CardPage:
         f"{links.page('tracking metrics', 'guides/tracking-metrics.md')}).",
     ]
     if weights == "float16":
-        limitations.append(
-            "- Its weights are stored as float16: its actions differ slightly from those of the float32 expert it "
-            "was packaged from (`mocap-hierarchy expert package` prints the largest difference)."
-        )
+        limitations.append(float16_note("expert", "mocap-hierarchy expert package"))
     made_by = "Written by `mocap-hierarchy expert train`"
     made_by += ", packaged with `mocap-hierarchy expert package`." if card else "."
-    sections = {
-        "Overview": overview,
-        "Intended use": [intended],
-        "Training": training,
-        "Inputs and outputs": inputs,
-        "Artifacts": artifacts,
-        "Runtime support": runtime,
-        "Limitations": limitations,
-        "Provenance": provenance_lines(context, made_by, EXPERT_TRAINING_FACTS),
-    }
+    sections = in_card_order(
+        overview,
+        [intended],
+        training,
+        inputs,
+        artifacts,
+        runtime,
+        limitations,
+        provenance_lines(context, made_by, EXPERT_TRAINING_FACTS),
+    )
     return CardPage(f"Snippet expert `{context.shipped or snippet}`", opening_line(context), sections)
 
 

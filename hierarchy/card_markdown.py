@@ -141,6 +141,25 @@ class DocLinks:
         return f"{text} (`{command}`)"
 
 
+def in_card_order(*parts: Sequence[str]) -> dict[str, Sequence[str]]:
+    """The eight sections' lines given in :data:`SECTIONS` order, as :class:`CardPage` takes them."""
+    return dict(zip(SECTIONS, parts, strict=True))
+
+
+def float16_note(kind: str, command: str, where: str = "") -> str:
+    """The limitation every card of a float16 file states: its actions differ slightly from the float32 original's.
+
+    Args:
+        kind: What the file holds (``decoder``, ``expert``, ``GPT``).
+        command: The command that packaged it and printed the largest difference.
+        where: On what that difference was measured, if worth saying (`` on real token windows``).
+    """
+    return (
+        f"- Its weights are stored as float16: its actions differ slightly from those of the float32 {kind} it was "
+        f"packaged from (`{command}` prints the largest difference{where})."
+    )
+
+
 @dataclass(frozen=True)
 class CardPage:
     """A model card as Markdown: a title, an opening line and the eight sections.

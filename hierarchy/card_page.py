@@ -34,6 +34,8 @@ from hierarchy.card_markdown import (
     FileFacts,
     artifact_lines,
     bullets,
+    float16_note,
+    in_card_order,
     interface_lines,
     layers_text,
     opening_line,
@@ -211,20 +213,17 @@ def decoder_card(context: CardContext) -> CardPage:
         "actions are extrapolation.",
     ]
     if weights == "float16":
-        limitations.append(
-            "- Its weights are stored as float16: its actions differ slightly from those of the float32 decoder it "
-            "was packaged from (`mocap-hierarchy decoder package` prints the largest difference)."
-        )
-    sections = {
-        "Overview": overview,
-        "Intended use": [intended],
-        "Training": training,
-        "Inputs and outputs": inputs,
-        "Artifacts": artifacts,
-        "Runtime support": runtime,
-        "Limitations": limitations,
-        "Provenance": provenance_lines(context, "The facts the command that wrote the file recorded in it:"),
-    }
+        limitations.append(float16_note("decoder", "mocap-hierarchy decoder package"))
+    sections = in_card_order(
+        overview,
+        [intended],
+        training,
+        inputs,
+        artifacts,
+        runtime,
+        limitations,
+        provenance_lines(context, "The facts the command that wrote the file recorded in it:"),
+    )
     return CardPage(f"Decoder `{name}`", opening_line(context), sections)
 
 
@@ -312,21 +311,21 @@ def prior_card(context: CardContext) -> CardPage:
         "- Another decoder is refused (`check_fits` compares the behaviour SHA-256), even one of the same "
         "architecture.",
     ]
-    sections = {
-        "Overview": overview,
-        "Intended use": [intended],
-        "Training": training,
-        "Inputs and outputs": inputs,
-        "Artifacts": artifacts,
-        "Runtime support": runtime,
-        "Limitations": limitations,
-        "Provenance": provenance_lines(
+    sections = in_card_order(
+        overview,
+        [intended],
+        training,
+        inputs,
+        artifacts,
+        runtime,
+        limitations,
+        provenance_lines(
             context,
             "Fitted with `mocap-hierarchy decoder fit-prior` (its settings and outcome are under Training).",
             PRIOR_TRAINING_FACTS,
             context.card.get("commands") or _fit_commands(decoder),
         ),
-    }
+    )
     title = f"Latent prior of `{decoder}`" if decoder else f"Latent prior `{context.display}`"
     return CardPage(title, opening_line(context), sections)
 
@@ -413,18 +412,16 @@ def task_policy_card(context: CardContext) -> CardPage:
             "- It needs the decoder it was trained on (and its latent prior, where it acts around one): loading "
             "finds them at their recorded path or by their shipped name and compares their SHA-256."
         )
-    sections = {
-        "Overview": overview,
-        "Intended use": [intended],
-        "Training": training,
-        "Inputs and outputs": inputs,
-        "Artifacts": artifacts,
-        "Runtime support": runtime,
-        "Limitations": limitations,
-        "Provenance": provenance_lines(
-            context, "Written by `mocap-hierarchy transfer train`.", TASK_POLICY_TRAINING_FACTS
-        ),
-    }
+    sections = in_card_order(
+        overview,
+        [intended],
+        training,
+        inputs,
+        artifacts,
+        runtime,
+        limitations,
+        provenance_lines(context, "Written by `mocap-hierarchy transfer train`.", TASK_POLICY_TRAINING_FACTS),
+    )
     title = f"Task policy `{context.shipped}`" if context.shipped else f"Task policy `{context.display}`"
     return CardPage(title, opening_line(context), sections)
 

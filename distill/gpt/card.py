@@ -33,6 +33,8 @@ from hierarchy.card_markdown import (
     artifact_lines,
     bullets,
     commands_block,
+    float16_note,
+    in_card_order,
     interface_lines,
     opening_line,
     provenance_lines,
@@ -195,22 +197,19 @@ def gpt_card(context: CardContext) -> CardPage:
         "- It sees no reference and no goal: it continues a motion, it cannot be told which one.",
     ]
     if weights == "float16":
-        limitations.append(
-            "- Its weights are stored as float16: its actions differ slightly from those of the float32 GPT it was "
-            "packaged from (`mocap-hierarchy gpt package` prints the largest difference on real token windows)."
-        )
+        limitations.append(float16_note("GPT", "mocap-hierarchy gpt package", " on real token windows"))
     made_by = "Written by `mocap-hierarchy gpt train`"
     made_by += ", packaged with `mocap-hierarchy gpt package`." if card else "."
-    sections = {
-        "Overview": overview,
-        "Intended use": [intended],
-        "Training": training,
-        "Inputs and outputs": inputs,
-        "Artifacts": artifacts,
-        "Runtime support": runtime,
-        "Limitations": limitations,
-        "Provenance": provenance_lines(context, made_by, GPT_TRAINING_FACTS, commands=[]),
-    }
+    sections = in_card_order(
+        overview,
+        [intended],
+        training,
+        inputs,
+        artifacts,
+        runtime,
+        limitations,
+        provenance_lines(context, made_by, GPT_TRAINING_FACTS, commands=[]),
+    )
     return CardPage(f"Motion GPT `{context.shipped or context.display}`", opening_line(context), sections)
 
 

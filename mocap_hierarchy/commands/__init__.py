@@ -28,4 +28,36 @@ COMMAND_MODULES = (
 )
 """Modules of :mod:`mocap_hierarchy.commands`, in the order of the help text."""
 
+
+def read_json_file(path, what: str = "model card"):
+    """The JSON in ``path`` (a card or a results file a command is given); an error naming it when missing or broken.
+
+    Raises:
+        FileNotFoundError: No such file.
+        ValueError: Not valid JSON.
+    """
+    import json
+    from pathlib import Path
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"{what} {path} does not exist")
+    try:
+        return json.loads(path.read_text())
+    except json.JSONDecodeError as error:
+        raise ValueError(f"{what} {path} is not valid JSON: {error}") from None
+
+
 __all__ = ["COMMAND_MODULES"]
+
+
+def add_precision_arguments(parser, tolerance: float | None = None, what: str = "a mean action") -> None:
+    """The weight precision flags of every ``package`` command: ``--float32``, and ``--tolerance`` when given one."""
+    parser.add_argument("--float32", action="store_true", help="keep float32 weights (default: float16)")
+    if tolerance is not None:
+        parser.add_argument(
+            "--tolerance",
+            type=float,
+            default=tolerance,
+            help=f"refuse, writing nothing, when float16 changes {what} by more (default: %(default)g)",
+        )

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from distill.npmp.config import LatentPriorConfig
 from foundation.config_cli import LazySubParsers, add_dataclass_arguments, add_subcommands, dataclass_from_args
+from mocap_hierarchy.commands import add_precision_arguments, read_json_file
 
 DECODER_HELP = "decoder .safetensors file or a shipped decoder's name (`mocap-hierarchy decoder list`)"
 """How every command that takes a decoder describes the argument."""
@@ -33,7 +34,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     package.add_argument(
         "--scores", type=Path, default=None, help="`distill eval --json` file whose scores fill the card"
     )
-    package.add_argument("--float32", action="store_true", help="keep float32 weights (default: float16)")
+    add_precision_arguments(package)
     package.set_defaults(handler=_package)
     card = decoder_commands.add_parser(
         "card", help="a model file's card as Markdown (decoder, latent prior or task policy), from the file itself"
@@ -103,9 +104,9 @@ def _info(args: argparse.Namespace) -> None:
 def _package(args: argparse.Namespace) -> None:
     from hierarchy.model_card import card_with_scores, package_decoder
 
-    card = json.loads(args.card.read_text())
+    card = read_json_file(args.card)
     if args.scores is not None:
-        card = card_with_scores(card, json.loads(args.scores.read_text()))
+        card = card_with_scores(card, read_json_file(args.scores, "scores file"))
     path, difference = package_decoder(args.file, args.out, card, float16=not args.float32)
     print(
         f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, {'float32' if args.float32 else 'float16'} weights); "

@@ -26,6 +26,7 @@ from foundation.config_cli import (
     given_fields,
 )
 from foundation.config_files import config_to_toml, read_config_file, setting_names, with_settings
+from mocap_hierarchy.commands import add_precision_arguments, read_json_file
 
 EXPERT_HELP = "an expert directory or a shipped expert's name (synthetic-v3/SYN_walk_slow-0-182)"
 """How every command that takes one expert describes the argument."""
@@ -101,13 +102,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     package.add_argument(
         "--card", type=Path, required=True, help="model card JSON: summary, commands, budgets, scores, notes"
     )
-    package.add_argument("--float32", action="store_true", help="keep float32 weights (default: float16)")
-    package.add_argument(
-        "--tolerance",
-        type=float,
-        default=PACKAGING_TOLERANCE,
-        help="refuse, writing nothing, when float16 changes a mean action by more (default: %(default)g)",
-    )
+    add_precision_arguments(package, PACKAGING_TOLERANCE)
     package.add_argument(
         "--episodes",
         type=int,
@@ -382,13 +377,7 @@ def _package(args: argparse.Namespace) -> None:
     import distill.expert_card as expert_card
     from distill.experts.packaging import package_expert
 
-    if not args.card.is_file():
-        raise FileNotFoundError(f"model card {args.card} does not exist (a JSON mapping: summary, commands, ...)")
-    try:
-        card = json.loads(args.card.read_text())
-    except json.JSONDecodeError as error:
-        raise ValueError(f"model card {args.card} is not valid JSON: {error}") from None
-    card = expert_card.check_expert_card(card, str(args.card))
+    card = expert_card.check_expert_card(read_json_file(args.card), str(args.card))
     packaged = package_expert(
         args.expert,
         args.out,

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 from pathlib import Path
 
 from foundation.config_cli import (
@@ -14,6 +13,7 @@ from foundation.config_cli import (
     dataclass_from_args,
     file_in_folder,
 )
+from mocap_hierarchy.commands import add_precision_arguments, read_json_file
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
@@ -57,19 +57,13 @@ def _build_package(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--scores", type=Path, default=None, help="`gpt complete --json` file whose overall figures fill the scores"
     )
-    parser.add_argument("--float32", action="store_true", help="keep float32 weights (default: float16)")
     parser.add_argument(
         "--data",
         type=Path,
         default=None,
         help="rollout dataset whose token windows compare the float32 and float16 GPT (default: its training data)",
     )
-    parser.add_argument(
-        "--tolerance",
-        type=float,
-        default=PACKAGING_TOLERANCE,
-        help="refuse, writing nothing, when float16 changes an action by more (default: %(default)g)",
-    )
+    add_precision_arguments(parser, PACKAGING_TOLERANCE, "an action")
     parser.add_argument(
         "--windows",
         type=int,
@@ -222,9 +216,9 @@ def _package(args: argparse.Namespace) -> None:
     from distill.gpt.completion_report import completion_scores
     from distill.gpt.packaging import package_gpt
 
-    card = check_gpt_card(_json_file(args.card, "model card"), str(args.card))
+    card = check_gpt_card(read_json_file(args.card, "model card"), str(args.card))
     if args.scores is not None:
-        card = {**card, "scores": completion_scores(_json_file(args.scores, "completion results"))}
+        card = {**card, "scores": completion_scores(read_json_file(args.scores, "completion results"))}
     packaged = package_gpt(
         args.gpt,
         args.out,
@@ -246,13 +240,3 @@ def _files_text(files: list[str]) -> str:
     """Rollout files in a line: their folder and count when they share one."""
     folders = {str(Path(file).parent) for file in files}
     return f"{folders.pop()} ({len(files)} files)" if len(folders) == 1 and len(files) > 1 else ", ".join(files)
-
-
-def _json_file(path: Path, what: str) -> dict:
-    """The JSON mapping in ``path``; an error naming it when it is missing or not JSON."""
-    if not path.is_file():
-        raise FileNotFoundError(f"{what} {path} does not exist")
-    try:
-        return json.loads(path.read_text())
-    except json.JSONDecodeError as error:
-        raise ValueError(f"{what} {path} is not valid JSON: {error}") from None

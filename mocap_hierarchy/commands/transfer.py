@@ -14,6 +14,7 @@ from foundation.config_cli import (
     dataclass_from_args,
     file_in_folder,
 )
+from mocap_hierarchy.commands import read_json_file
 from mocap_hierarchy.commands.decoder import DECODER_HELP
 
 POLICY_HELP = "policy.safetensors, the training folder, or a shipped task policy's name (synthetic-v3/velocity_control)"
@@ -157,7 +158,7 @@ def _package(args: argparse.Namespace) -> None:
     from hierarchy.task_policy import load_task_policy
     from hierarchy.transfer import POLICY_FILE
 
-    card = json.loads(args.card.read_text())
+    card = read_json_file(args.card)
     path = package_task_policy(file_in_folder(args.policy, POLICY_FILE), args.out, card)
     print(f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, weights as trained)")
     decoder = load_task_policy(path).spec.decoder
