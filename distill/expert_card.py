@@ -44,7 +44,7 @@ from hierarchy.card_markdown import (
     text,
 )
 from hierarchy.card_page import register_card_builder
-from hierarchy.model_card import ModelCardError, check_card
+from hierarchy.model_card import check_card
 from tasks.tracking.metrics import METRIC_LABELS
 
 EXPERT_TRAINING_FACTS = ("trained_steps", "clips")
@@ -56,41 +56,12 @@ SCORE_LABELS = {"normalized_reward": "normalised reward", "normalized_length": "
 
 
 def check_expert_card(card: Any, where: str = "") -> dict[str, Any]:
-    """Returns ``card`` when its fields have the expected JSON types (:func:`hierarchy.model_card.check_card`).
-
-    ``scores`` must be a mapping whose ``protocol`` is a string and every other value a number (or null).
+    """Returns ``card`` when its fields have the expected JSON types; its scores are numbers, ``protocol`` a string.
 
     Raises:
         ModelCardError: Naming the field, the type it needs and the type it has.
     """
-    card = check_card(card, where)
-    prefix = f"{where}: " if where else ""
-    scores = card.get("scores", {})
-    if not isinstance(scores, Mapping):
-        raise ModelCardError(f"{prefix}model card field `scores` must be a mapping, not {_json_kind(scores)}")
-    for key, value in scores.items():
-        if key == "protocol":
-            if not isinstance(value, str):
-                raise ModelCardError(f"{prefix}model card field `scores.protocol` must be a string")
-        elif value is not None and (not isinstance(value, int | float) or isinstance(value, bool)):
-            raise ModelCardError(f"{prefix}model card field `scores.{key}` must be a number, not {_json_kind(value)}")
-    return card
-
-
-_JSON_KINDS = {
-    bool: "a boolean",
-    str: "a string",
-    int: "a number",
-    float: "a number",
-    list: "a list",
-    dict: "a mapping",
-}
-
-
-def _json_kind(value: Any) -> str:
-    if value is None:
-        return "null"
-    return next((name for kind, name in _JSON_KINDS.items() if isinstance(value, kind)), type(value).__name__)
+    return check_card(card, where, numeric_scores=True)
 
 
 def scores_lines(scores: Mapping[str, Any]) -> list[str]:

@@ -103,8 +103,9 @@ def main() -> None:
         f"{'policy':<24}{'episodes':>9}{'steps':>7}{'slope':>7}{'corr.':>7}{'heading cos':>12}"
         f"{'reward/step':>12}{'standing still':>15}"
     )
+    figures = {}
     for (over_time, scatter), (label, episodes) in zip(axes, runs.items(), strict=True):
-        stats = summarise(episodes)
+        stats = figures[label] = summarise(episodes)
         print(table_row(label, stats))
         first = episodes[0]
         seconds = np.arange(len(first.rewards)) * CONTROL_TIMESTEP * first.steps_per_latent
@@ -131,9 +132,8 @@ def main() -> None:
     if reference is not None:
         print(table_row(f"{args.zero_latent}, z = 0", reference) + "  (not drawn)")
     if args.json is not None:
-        figures = {label: summarise(episodes).as_dict() for label, episodes in runs.items()}
         settings = {"episodes": args.episodes, "steps": args.steps, "seed": args.seed}
-        write_json(args.json, {"settings": settings, "policies": figures})
+        write_json(args.json, {"settings": settings, "policies": {k: v.as_dict() for k, v in figures.items()}})
         print(f"figures: {args.json}")
     figure.tight_layout()
     args.out.parent.mkdir(parents=True, exist_ok=True)

@@ -59,12 +59,14 @@ class ModelCardError(ValueError):
     """A model card whose fields are not of the expected JSON types."""
 
 
-def check_card(card: Any, where: str = "") -> dict[str, Any]:
+def check_card(card: Any, where: str = "", numeric_scores: bool = False) -> dict[str, Any]:
     """Returns ``card`` when its known fields have the expected types; unknown fields pass.
 
     Args:
         card: The card as read from JSON.
         where: What the card belongs to, for messages (a file name).
+        numeric_scores: Every score but ``protocol`` (a string) must be a number or null: the cards of experts
+            and GPTs, whose scores are measured figures only (a task policy's may be words).
 
     Raises:
         ModelCardError: Naming the field, the type it needs and the type it has.
@@ -88,7 +90,11 @@ def check_card(card: Any, where: str = "") -> dict[str, Any]:
         if field in policy:
             require(f"multi_clip.{field}", policy[field], dict, "a mapping")
     for key, value in card.get("scores", {}).items():
-        if value is not None:
+        if key == "protocol" and numeric_scores:
+            require("scores.protocol", value, str, "a string")
+        elif value is not None and numeric_scores:
+            require(f"scores.{key}", value, (int, float), "a number")
+        elif value is not None:
             require(f"scores.{key}", value, (int, float, str), "a number or a string")
     rows = {f"experts.{k}": v for k, v in card.get("experts", {}).items()}
     rows.update({f"multi_clip.snippets.{k}": v for k, v in policy.get("snippets", {}).items()})

@@ -13,6 +13,12 @@ adds the flags only when that subcommand is chosen. Handlers import what they ru
 ``tests/test_cli_conventions.py`` checks both, and that every option has help.
 """
 
+import argparse
+import json
+import os
+from pathlib import Path
+from typing import Any
+
 COMMAND_MODULES = (
     "quickstart",
     "clips",
@@ -29,16 +35,13 @@ COMMAND_MODULES = (
 """Modules of :mod:`mocap_hierarchy.commands`, in the order of the help text."""
 
 
-def read_json_file(path, what: str = "model card"):
+def read_json_file(path: str | os.PathLike, what: str = "model card") -> Any:
     """The JSON in ``path`` (a card or a results file a command is given); an error naming it when missing or broken.
 
     Raises:
         FileNotFoundError: No such file.
         ValueError: Not valid JSON.
     """
-    import json
-    from pathlib import Path
-
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"{what} {path} does not exist")
@@ -51,7 +54,9 @@ def read_json_file(path, what: str = "model card"):
 __all__ = ["COMMAND_MODULES"]
 
 
-def add_precision_arguments(parser, tolerance: float | None = None, what: str = "a mean action") -> None:
+def add_precision_arguments(
+    parser: argparse.ArgumentParser, tolerance: float | None = None, what: str = "a mean action"
+) -> None:
     """The weight precision flags of every ``package`` command: ``--float32``, and ``--tolerance`` when given one."""
     parser.add_argument("--float32", action="store_true", help="keep float32 weights (default: float16)")
     if tolerance is not None:
