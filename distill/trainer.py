@@ -6,10 +6,13 @@ be an ``nn.Module`` whose ``forward(batch)`` returns ``(loss, {name: float})``;
 with weight decay, a model may also offer ``optimizer_groups(weight_decay)``
 (AdamW parameter groups, e.g. no decay on biases and norms).
 
-* **Resume**: ``out/checkpoint.pt`` holds weights, optimiser state, step,
-  and a fingerprint of the settings; a rerun
-  continues from it (settings that change the result must match), written
-  atomically every ``checkpoint_every`` steps and at the end.
+* **Resume, exactly**: ``out/checkpoint.pt`` holds weights, optimiser state, step
+  (which is also the batch stream's position), torch's random state (the
+  VAE's noise, dropout), the metrics of the logging interval in progress and
+  a fingerprint of the settings; a rerun continues from it (settings that
+  change the result must match) and ends with the files an uninterrupted run
+  writes, byte for byte. Written atomically every ``checkpoint_every`` steps
+  and at the end.
   The checkpoint is read with ``torch.load(weights_only=True)``: tensors and
   plain containers only, no code.
 * **Logs**: a progress bar, TensorBoard scalars in ``out/tensorboard`` and the
@@ -22,9 +25,11 @@ with weight decay, a model may also offer ``optimizer_groups(weight_decay)``
 
 from __future__ import annotations
 
+import io
 import json
 import math
 import os
+import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
@@ -40,6 +45,7 @@ from tqdm.auto import tqdm
 from distill.trainer_config import TrainerConfig  # defined there (light), used and re-exported here
 from foundation.atomic import atomic_path, write_json
 from foundation.interrupts import stop_requests
+from foundation.provenance import now
 from foundation.resume import SettingsMismatchError, check_same_settings, settings_record
 
 CHECKPOINT = "checkpoint.pt"
@@ -113,7 +119,7 @@ class TrainingOutcome:
 
 def train(
     model: nn.Module,
-    batches: Callable[[int, int, torch.device], Iterator[dict[str, torch.Tensor]]],
+    batches: Callable[[int, int, torch.device, int], Iterator[dict[str, torch.Tensor]]],
     out: str | os.PathLike,
     config: TrainerConfig,
     settings: dict[str, Any],
@@ -126,7 +132,8 @@ def train(
         model: An ``nn.Module``; ``model(batch)`` returns ``(scalar loss, {name: 0-d tensor})``
             (detached tensors, read back only when logged; the one per-step wait is the finiteness check of the loss,
             kept so a NaN never reaches the optimiser).
-        batches: ``batches(seed, batch_size, device)`` yields batches forever.
+        batches: ``batches(seed, batch_size, device, start)`` yields batches forever, beginning with the
+            batch a stream from ``seed`` draws after ``start`` batches (a resumed run's step).
         out: Output folder (checkpoint, history, TensorBoard logs).
         config: Loop settings.
         settings: Everything else that determines the result (model and data
@@ -145,14 +152,18 @@ def train(
     model.to(device)
     optimizer = _optimizer(model, config)
     resume_settings = {"trainer": {k: v for k, v in asdict(config).items() if k not in _FREE}, **settings}
-    step, history = _resume(out / CHECKPOINT, resume_settings, config, model, optimizer)
+    state = _load_checkpoint(out / CHECKPOINT, resume_settings, config)
+    step, history = _resume(state, model, optimizer)
     resumed_from = step
     if step and place.is_main and progress:
         print(f"resuming {out} from step {step} of {config.steps}")
     trained = nn.parallel.DistributedDataParallel(model) if place.world_size > 1 else model
     model.train()
     log = _Log(out, history, place, step, config, progress, description)
-    stream = batches(_sampling_seed(config.seed, place.rank, step), config.batch_size // place.world_size, device)
+    if state is not None:
+        log.restore(state)
+        _restore_random_state(state, device)
+    stream = batches(_sampling_seed(config.seed, place.rank), config.batch_size // place.world_size, device, step)
     with stop_requests() as stop:
         while step < config.steps:
             loss, grad_norm, values = _optimiser_step(trained, model, optimizer, next(stream), config.grad_clip, step)
@@ -160,7 +171,7 @@ def train(
             log.step(step, {"loss": loss, "grad_norm": grad_norm, **values})
             stopping = stop.requested and place.world_size == 1  # under torchrun, every replica ends as it is told
             if place.is_main and (step % config.checkpoint_every == 0 or step == config.steps or stopping):
-                _save_checkpoint(out, model, optimizer, step, resume_settings, history)
+                _save_checkpoint(out, model, optimizer, step, resume_settings, log)
             if stopping:
                 log.close()
                 where = f"{description}: stopped at step {step} of {config.steps}"
@@ -192,10 +203,9 @@ def _end_process(place: Distributed) -> None:
 
 
 def _resume(
-    path: Path, settings: dict[str, Any], config: TrainerConfig, model: nn.Module, optimizer: torch.optim.Optimizer
+    state: dict | None, model: nn.Module, optimizer: torch.optim.Optimizer
 ) -> tuple[int, dict[str, list[float]]]:
-    """Loads the checkpoint into ``model`` and ``optimizer`` when there is one: ``(step, history)``."""
-    state = _load_checkpoint(path, settings, config)
+    """Loads the checkpoint ``state`` into ``model`` and ``optimizer`` when there is one: ``(step, history)``."""
     if state is None:
         return 0, {"step": [], "loss": []}
     model.load_state_dict(state["model"])
@@ -203,9 +213,25 @@ def _resume(
     return int(state["step"]), json.loads(state["history"])
 
 
-def _sampling_seed(seed: int, rank: int, step: int) -> int:
-    """Sampling depends on (seed, rank, step reached): a resumed run draws fresh batches reproducibly."""
-    return int(np.random.SeedSequence([seed, rank, step]).generate_state(1)[0])
+def _random_state(device: torch.device) -> dict[str, Any]:
+    """Torch's random state (CPU, and this process's GPU when training there): what the next steps' noise follows."""
+    state: dict[str, Any] = {"torch_rng": torch.get_rng_state()}
+    if device.type == "cuda":
+        state["cuda_rng"] = torch.cuda.get_rng_state(device)
+    return state
+
+
+def _restore_random_state(state: dict, device: torch.device) -> None:
+    """Puts back the random state a checkpoint saved (a checkpoint written before it was kept has none)."""
+    if "torch_rng" in state:
+        torch.set_rng_state(state["torch_rng"])
+    if device.type == "cuda" and "cuda_rng" in state:
+        torch.cuda.set_rng_state(state["cuda_rng"], device)
+
+
+def _sampling_seed(seed: int, rank: int) -> int:
+    """The seed of this process's batch stream (the stream's position is the step, see ``batches``)."""
+    return int(np.random.SeedSequence([seed, rank, 0]).generate_state(1)[0])
 
 
 def _optimiser_step(
@@ -259,6 +285,15 @@ class _Log:
             self.bar.set_postfix(loss=f"{means['loss']:.4g}")
         self.bar.update()
 
+    def saved(self) -> dict[str, Any]:
+        """The history and the interval in progress, for the checkpoint."""
+        window = {name: torch.stack(values).detach().cpu() for name, values in self.window.items()}
+        return {"history": json.dumps(self.history), "log_window": window}
+
+    def restore(self, state: dict) -> None:
+        """Takes back the metrics a checkpoint saved of the interval in progress."""
+        self.window = {name: list(values.unbind()) for name, values in state.get("log_window", {}).items()}
+
     def close(self) -> None:
         self.bar.close()
         if self.writer is not None:
@@ -297,20 +332,46 @@ def _load_checkpoint(path: Path, settings: dict[str, Any], config: TrainerConfig
 
 
 def _save_checkpoint(
-    out: Path, model: nn.Module, optimizer: torch.optim.Optimizer, step: int, settings: dict[str, Any], history: dict
+    out: Path, model: nn.Module, optimizer: torch.optim.Optimizer, step: int, settings: dict[str, Any], log: _Log
 ) -> None:
     record = settings_record(settings)
+    device = next(model.parameters()).device
     state = {
         "model": model.state_dict(),
         "optimizer": optimizer.state_dict(),
         "step": step,
         "fingerprint": record["fingerprint"],
         "settings": json.dumps(record["settings"]),
-        "history": json.dumps(history),
+        **log.saved(),
+        **_random_state(device),
     }
     with atomic_path(out / CHECKPOINT) as temporary:
-        torch.save(state, temporary)
-    write_json(out / HISTORY, history)
+        temporary.write_bytes(_checkpoint_bytes(state))
+    write_json(out / HISTORY, log.history)
+
+
+def _checkpoint_bytes(state: dict[str, Any]) -> bytes:
+    """``torch.save`` bytes that depend on the state's values alone.
+
+    Saved to a file, torch names the archive's records after the file (a temporary name here); and pickle writes a
+    string once per object, so a key loaded from a checkpoint (a new string object) and the same key from the code
+    (an interned one) give different bytes. A buffer and interned strings make a resumed run's checkpoint equal an
+    uninterrupted run's.
+    """
+    buffer = io.BytesIO()
+    torch.save(_interned(state), buffer)
+    return buffer.getvalue()
+
+
+def _interned(value: Any) -> Any:
+    """``value`` with every string in its dicts, lists and tuples interned (tensors untouched)."""
+    if isinstance(value, str):
+        return sys.intern(value)
+    if isinstance(value, dict):
+        return {_interned(key): _interned(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return type(value)(_interned(item) for item in value)
+    return value
 
 
 # The skeleton NPMP and GPT training share ---------------------------------------
@@ -383,8 +444,8 @@ def train_on_dataset(
         files = [str(p.resolve()) for p in dataset.files]
         resume = {**settings, "sampler": asdict(sampler), "data": files}
 
-        def batches(seed: int, batch_size: int, device: torch.device) -> Iterator[dict[str, torch.Tensor]]:
-            return windows.batches(batch_size, seed=seed, device=device)
+        def batches(seed: int, batch_size: int, device: torch.device, start: int) -> Iterator[dict[str, torch.Tensor]]:
+            return windows.batches(batch_size, seed=seed, device=device, start=start)
 
         outcome = train(model, batches, out, trainer, resume, progress=progress, description=description)
         finished = outcome.already_finished and all((out / name).is_file() for name in outputs)
@@ -410,5 +471,6 @@ def write_run_summary(
             "resumed_from": run.outcome.resumed_from,
             "final_loss": run.outcome.final_loss,
             "seconds": run.outcome.seconds,
+            "finished": now(),
         },
     )

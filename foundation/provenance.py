@@ -1,4 +1,9 @@
-"""Provenance stamped into every file the library writes: facts, date, library version."""
+"""Provenance stamped into every file the library writes: facts, date, library version.
+
+A file a deterministic trainer writes (the multi-clip policy and its decoder, the GPT) carries no date: its bytes
+follow from the run's inputs alone, so a run stopped and resumed writes the file an uninterrupted run writes. Its
+run summary (``distill.json``, ``gpt.json``) says when the run finished.
+"""
 
 from __future__ import annotations
 
@@ -18,10 +23,12 @@ def library_version() -> str:
         return "unknown"
 
 
-def provenance(**facts: Any) -> dict[str, Any]:
-    """Provenance facts plus the date and library version."""
-    return {
-        **facts,
-        "date": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
-        "library_version": library_version(),
-    }
+def now() -> str:
+    """The current UTC time as provenance records it (ISO 8601, seconds)."""
+    return datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds")
+
+
+def provenance(dated: bool = True, **facts: Any) -> dict[str, Any]:
+    """Provenance facts plus the date (unless ``dated`` is false: see the module docstring) and library version."""
+    stamp = {"date": now()} if dated else {}
+    return {**facts, **stamp, "library_version": library_version()}

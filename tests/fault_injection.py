@@ -21,7 +21,7 @@ import subprocess
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -53,7 +53,7 @@ def run_to_end(args: Sequence[str], out: Path | None = None, timeout: float = 60
     with tempfile.TemporaryFile("w+") as log:
         process = subprocess.Popen(command(args), stdout=log, stderr=subprocess.STDOUT, text=True)
         while process.poll() is None:  # polling (not wait): the first write into ``out`` is timed too
-            if first_write is None and out is not None and out.exists() and any(out.rglob("*")):
+            if first_write is None and out is not None and out.exists() and any(_outputs(out)):
                 first_write = time.perf_counter() - started
             if time.perf_counter() - started > timeout:
                 process.kill()
@@ -65,6 +65,11 @@ def run_to_end(args: Sequence[str], out: Path | None = None, timeout: float = 60
     if process.returncode != 0:
         raise AssertionError(f"{' '.join(args)} exited {process.returncode}:\n{output[-5000:]}")
     return output, Timing(seconds, first_write if first_write is not None else 0.0)
+
+
+def _outputs(out: Path) -> Iterator[Path]:
+    """What a job wrote under ``out``, less the run lock it takes first (``.lock``, ``.NAME.lock``)."""
+    return (path for path in out.rglob("*") if not path.name.endswith(".lock"))
 
 
 def start(args: Sequence[str], log: Path) -> subprocess.Popen:
@@ -152,22 +157,31 @@ class KillReport:
     killed_log: str = ""
     log: str = ""
 
-    def row(self, identical: bool) -> str:
-        """A line of ``docs/results.md``'s table (``identical``: the outputs were compared byte for byte)."""
-        checked = f"{len(self.outputs)} ({'byte-identical' if identical else 'complete, valid'})"
+    def row(self, identical: bool, why_not: str = "") -> str:
+        """A line of the kill table (``identical``: the outputs equal an uninterrupted run's byte for byte;
+        otherwise ``why_not`` says what differs)."""
+        same = "yes, byte for byte" if identical else f"no: {why_not}"
         moments = ", ".join(f"{d:g}" for d in self.delays)
         return (
             f"| {self.job} | {self.kills} of {len(self.delays)} (at {moments} s; seed {self.seed}) | {self.runs} | "
-            f"{checked} | {len(self.redone)} | {len(self.temporaries_at_end)} |"
+            f"{len(self.outputs)} | {same} | {len(self.redone)} | {len(self.temporaries_at_end)} |"
         )
 
 
-def publish(report: KillReport, identical: bool = False) -> None:
-    """Appends the report's table row to ``$KILL_REPORT`` when it is set (call it once every check passed)."""
+def publish(report: KillReport, identical: bool = False, why_not: str = "") -> None:
+    """Appends the report's table row to ``$KILL_REPORT`` when it is set (call it once every check passed).
+
+    Args:
+        report: The trial's report.
+        identical: The test asserted the outputs equal an uninterrupted run's byte for byte.
+        why_not: Otherwise, what differs and why (required then).
+    """
+    if not identical and not why_not:
+        raise ValueError("a trial whose outputs are not compared byte for byte must say why")
     target = os.environ.get("KILL_REPORT")
     if target:
         with open(target, "a") as handle:
-            handle.write(report.row(identical) + "\n")
+            handle.write(report.row(identical, why_not) + "\n")
 
 
 def kill_and_resume(

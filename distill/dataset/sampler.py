@@ -266,7 +266,7 @@ class WindowDataset(Dataset):
         return handles
 
     def sample_indices(self, batch_size: int, rng: np.random.Generator) -> np.ndarray:
-        """Window indices drawn with :meth:`probabilities`."""
+        """Window indices drawn with :meth:`probabilities` (one uniform draw each: :func:`stream_generator`)."""
         return np.minimum(np.searchsorted(self._cdf, rng.random(batch_size) * self._cdf[-1]), len(self) - 1)
 
     def sample_batch(self, batch_size: int, rng: np.random.Generator) -> dict[str, np.ndarray]:
@@ -306,7 +306,12 @@ class WindowDataset(Dataset):
         np.take(self.weights, act_rows, out=out["weights"].reshape(-1), mode="clip")
 
     def batches(
-        self, batch_size: int, seed: int = 0, prefetch: int = 2, device: str | torch.device = "cpu"
+        self,
+        batch_size: int,
+        seed: int = 0,
+        prefetch: int = 2,
+        device: str | torch.device = "cpu",
+        start: int = 0,
     ) -> Iterator[dict[str, torch.Tensor]]:
         """Endless batches as torch tensors, gathered ahead by a background thread.
 
@@ -325,8 +330,10 @@ class WindowDataset(Dataset):
             seed: Seed of the window sampling.
             prefetch: Batches prepared ahead.
             device: Where the tensors go.
+            start: Batches of this stream already drawn (a resumed run's step): the stream continues exactly
+                where a stream that drew them would be (:func:`stream_generator`).
         """
-        rng = np.random.default_rng(seed)
+        rng = stream_generator(seed, start * batch_size)
         device = torch.device(device)
         cuda = device.type == "cuda"
         ring = []
@@ -396,6 +403,20 @@ class WindowDataset(Dataset):
             num_workers=num_workers,
             persistent_workers=num_workers > 0,
         )
+
+
+def stream_generator(seed: int, draws: int = 0) -> np.random.Generator:
+    """The generator of a batch stream, positioned after ``draws`` uniform draws.
+
+    Every window costs one ``random()`` draw, and NumPy's PCG64 turns each double into exactly one 64-bit output,
+    so advancing the bit generator by ``draws`` puts a fresh generator where a stream that drew ``draws`` windows
+    is: a resumed run continues the uninterrupted run's batches without drawing the skipped ones
+    (``tests/distill/test_sampler.py`` checks the equality).
+    """
+    bits = np.random.PCG64(seed)
+    if draws:
+        bits.advance(draws)
+    return np.random.Generator(bits)
 
 
 def _snippet_steps(snippet: str) -> int:

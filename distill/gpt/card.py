@@ -12,8 +12,9 @@ A GPT's card holds the fields of :mod:`hierarchy.model_card` that apply (``summa
 completion of the GPT against the baselines after the same prompt, flat so every card reader
 takes it (:func:`distill.gpt.completion_report.completion_scores` makes it from a
 ``gpt complete --json`` file): ``protocol`` (how they were measured), ``COMPLETER/VARIANT`` (a mean
-completion length in steps after the prompt: ``gpt/deterministic``, ``hold/stochastic``) and
-``COMPLETER/VARIANT/at_limit`` (the fraction of episodes that reached the step limit).
+completion length in steps after the prompt: ``gpt/deterministic``, ``hold/stochastic``),
+``COMPLETER/VARIANT/moving`` (the mean steps it kept moving) and ``COMPLETER/VARIANT/at_limit`` (the
+fraction of episodes that reached the step limit).
 """
 
 from __future__ import annotations
@@ -51,12 +52,15 @@ GPT_TRAINING_FACTS = ("dataset", "steps", "final_loss")
 AT_LIMIT = "at_limit"
 """The last part of a score key holding the fraction of episodes that reached the step limit."""
 
+MOVING = "moving"
+"""The last part of a score key holding the mean steps the humanoid kept moving."""
+
 
 def check_gpt_card(card: Any, where: str = "") -> dict[str, Any]:
     """Returns ``card`` when its fields have the expected JSON types (:func:`hierarchy.model_card.check_card`).
 
-    Every score but ``protocol`` must be a number (a score key is ``COMPLETER/VARIANT`` or
-    ``COMPLETER/VARIANT/at_limit``).
+    Every score but ``protocol`` must be a number (a score key is ``COMPLETER/VARIANT``,
+    ``COMPLETER/VARIANT/moving`` or ``COMPLETER/VARIANT/at_limit``).
 
     Raises:
         ModelCardError: Naming the field, the type it needs and the type it has.
@@ -67,12 +71,20 @@ def check_gpt_card(card: Any, where: str = "") -> dict[str, Any]:
         if key == "protocol":
             continue
         parts = key.split("/")
-        if len(parts) not in (2, 3) or (len(parts) == 3 and parts[2] != AT_LIMIT):
+        if len(parts) not in (2, 3) or (len(parts) == 3 and parts[2] not in (MOVING, AT_LIMIT)):
             raise ModelCardError(
-                f"{prefix}model card field `scores.{key}`: a score is named COMPLETER/VARIANT or "
-                f"COMPLETER/VARIANT/{AT_LIMIT} (`mocap-hierarchy gpt package --scores completion.json` fills them)"
+                f"{prefix}model card field `scores.{key}`: a score is named COMPLETER/VARIANT, "
+                f"COMPLETER/VARIANT/{MOVING} or COMPLETER/VARIANT/{AT_LIMIT} "
+                "(`mocap-hierarchy gpt package --scores completion.json` fills them)"
             )
     return card
+
+
+def _steps_and_seconds(steps: Any) -> list[str]:
+    """A length in steps and in seconds as two cells ("-" when absent)."""
+    if steps is None:
+        return ["-", "-"]
+    return [f"{float(steps):.1f}", f"{float(steps) * CONTROL_TIMESTEP:.2f}"]
 
 
 def scores_lines(scores: Mapping[str, Any]) -> list[str]:
@@ -87,12 +99,14 @@ def scores_lines(scores: Mapping[str, Any]) -> list[str]:
         return []
     body = []
     for (completer, variant), row in rows.items():
-        steps, limit = row.get("steps"), row.get(AT_LIMIT)
-        length = "-" if steps is None else f"{float(steps):.1f}"
-        seconds = "-" if steps is None else f"{steps * CONTROL_TIMESTEP:.2f}"
-        body.append([f"`{completer}`", variant, length, seconds, _percent(limit)])
+        steps, moving, limit = row.get("steps"), row.get(MOVING), row.get(AT_LIMIT)
+        body.append(
+            [f"`{completer}`", variant, *_steps_and_seconds(moving), *_steps_and_seconds(steps), _percent(limit)]
+        )
     protocol = [str(scores["protocol"]), ""] if scores.get("protocol") else []
-    header = ["completer", "variant", "completion (steps)", "seconds", "episodes at the step limit"]
+    header = [
+        "completer", "variant", "moving (steps)", "seconds", "upright (steps)", "seconds", "episodes at the step limit"
+    ]  # fmt: skip
     legend = (
         "`gpt`: this model; `prior`: a decoder driven by its latent prior's mean; `hold`: the prompt's last "
         "reference pose held. All act after the same prompt."

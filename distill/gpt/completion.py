@@ -9,8 +9,9 @@ that leaves room for the prompt) in
 it falls or the step limit ends the episode. The completers (:mod:`distill.gpt.completers`) are
 the GPT, which reads every state from the episode's first step (one token per step into its
 key/value cache), and two baselines after the same prompt: ``prior`` (a decoder driven by its
-latent prior's mean) and ``hold`` (the prompt's last reference pose held). The metric is the
-completion length (steps after the prompt), per snippet, completer and variant: deterministic
+latent prior's mean) and ``hold`` (the prompt's last reference pose held). The metrics are the
+completion length (steps after the prompt) and the moving length (steps before the humanoid
+stopped moving: a held pose stays up but does not move), per snippet, completer and variant: deterministic
 (no action noise) and stochastic (Gaussian noise of the experts' 0.1 on every action, prompt
 included). :mod:`distill.gpt.completion_report` summarises and prints it.
 """
@@ -280,6 +281,8 @@ def _run(controller: CompletionController, lockstep: Lockstep) -> list[EpisodeRe
                     length=int(info["completion_length"]),
                     fell_during_prompt=bool(info["fell_during_prompt"]),
                     reached_limit=bool(transition.truncated),
+                    moving_length=int(info["moving_length"]),
+                    travel=float(info["completion_travel"]),
                 )
             )
             controller.new_episode(transition.env)

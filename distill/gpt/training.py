@@ -116,7 +116,7 @@ def train_gpt(
         return GptResult(out / GPT_FILE, count, run.outcome)
     model.cpu().eval()
     facts = {"dataset": run.data_files, "steps": run.outcome.steps, "final_loss": run.outcome.final_loss}
-    model.spec = dataclasses.replace(model.spec, provenance=provenance(**facts))
+    model.spec = dataclasses.replace(model.spec, provenance=provenance(dated=False, **facts))
     path = model.save(out / GPT_FILE)
     write_run_summary(out / "gpt.json", settings, trainer, sampler, run, parameters=count)
     return GptResult(path, count, run.outcome)

@@ -54,7 +54,7 @@ class NpmpSpec:
         decoder_sizes: Decoder observation keys and sizes, in input order.
         ref_steps: Reference look-ahead of the encoder's reference observables.
         action_size: Number of actions.
-        provenance: Dataset, steps, date, library version.
+        provenance: Dataset, steps, library version (no date: :mod:`foundation.provenance`).
     """
 
     config: dict[str, Any]
@@ -213,7 +213,7 @@ class NpmpPolicy(nn.Module):
         """The trained decoder as a frozen :class:`hierarchy.LatentDecoder` (a copy)."""
         state = {k: v.detach().cpu().clone() for k, v in self.decoder.state_dict().items()}
         return LatentDecoder(
-            self.decoder_spec(provenance(**facts)),
+            self.decoder_spec(provenance(dated=False, **facts)),
             self.decoder_mean.cpu(),
             self.decoder_std.cpu(),
             state,

@@ -17,21 +17,55 @@ Episode semantics (as MoCapAct's ``MotionCompletion``):
 * the reward is the tracking reward against the (held) reference, for
   information only; the metric is the completion length.
 
+Staying up is not the whole of completing a motion: a pose held still stands
+until the step limit. So the environment also measures how long the humanoid
+keeps **moving**: ``moving_length`` counts the completion's steps up to the
+first second (:data:`STILL_WINDOW` steps) in which its joints move, on
+average, less than :data:`STILL_FRACTION` of the snippet's own mean joint
+speed (or up to the fall, when it never stops). A completion that carries the
+motion on scores its upright length; one that freezes scores about a second.
+
 At an episode's end ``info`` holds ``completion_length`` (steps after the
-prompt; 0 when the humanoid fell during the prompt) and ``fell_during_prompt``.
+prompt; 0 when the humanoid fell during the prompt), ``moving_length``,
+``completion_travel`` (metres the root moved over the ground after the
+prompt) and ``fell_during_prompt``.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from tasks.observables import OBSERVABLE_SETS
 from tasks.simulation import disallowed_contact
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
+from tasks.tracking.reference import WalkerState
 from tasks.walker import WalkerModel
 
 COMPLETION_OBSERVABLES: tuple[str, ...] = (*OBSERVABLE_SETS["gpt"], "walker/time_in_clip")
 """Default observables: the GPT's, plus what the paper's experts read (``time_in_clip``)."""
+
+STILL_WINDOW = 33
+"""Steps (about a second) over which the joints' speed is averaged to decide that the humanoid stopped moving."""
+
+STILL_FRACTION = 0.25
+"""A window whose mean joint speed is below this fraction of the snippet's own mean joint speed is still."""
+
+
+def moving_length(joint_speeds: np.ndarray, reference_speed: float) -> int:
+    """Completion steps before the first still window (all of them when none is still).
+
+    Args:
+        joint_speeds: Mean absolute joint velocity (rad/s) at each completion step.
+        reference_speed: The snippet's mean absolute joint velocity (rad/s).
+    """
+    speeds = np.asarray(joint_speeds, dtype=np.float64)
+    if len(speeds) < STILL_WINDOW:
+        return len(speeds)
+    windows = np.convolve(speeds, np.ones(STILL_WINDOW) / STILL_WINDOW, mode="valid")
+    still = np.flatnonzero(windows < STILL_FRACTION * reference_speed)
+    return int(still[0]) if len(still) else len(speeds)
 
 
 @dataclass(frozen=True)
@@ -98,6 +132,23 @@ class MotionCompletionEnv(ClipTrackingEnv):
                 )
         self._body_geoms, self._ground_geoms = self.walker.fall_geoms()
 
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        """Starts an episode (see :meth:`ClipTrackingEnv.reset`) and its motion record."""
+        observation, info = super().reset(seed=seed, options=options)
+        reference = self._reference
+        activity = np.abs(reference.joints_velocity[: reference.last_step + 1]).mean(axis=0)
+        self._joint_weights = activity / max(float(activity.sum()), 1e-9)
+        self._reference_speed = float(self._joint_weights @ activity)
+        self._joint_speeds: list[float] = []
+        self._prompt_end_root = self._walker_state.root_position[:2].copy()
+        return observation, info
+
+    @property
+    def _walker_state(self) -> WalkerState:
+        """The walker's state after the last reset or step."""
+        assert self._state is not None, "reset() first"
+        return self._state
+
     @property
     def in_prompt(self) -> bool:
         """Whether the next action belongs to the prompt."""
@@ -112,6 +163,10 @@ class MotionCompletionEnv(ClipTrackingEnv):
         terminated = fell or diverged
         truncated = not terminated and self._episode_length >= self.completion.max_steps
         phase = "prompt" if self._episode_length <= self.completion.prompt_steps else "completion"
+        if phase == "completion":
+            self._joint_speeds.append(float(self._joint_weights @ np.abs(self._walker_state.joints_velocity)))
+        elif self._episode_length == self.completion.prompt_steps:
+            self._prompt_end_root = self._walker_state.root_position[:2].copy()
         return terminated, truncated, {"fell": fell, "phase": phase}
 
     def _episode_summary(self, terminated: bool) -> dict[str, float]:
@@ -120,5 +175,11 @@ class MotionCompletionEnv(ClipTrackingEnv):
             "episode_return": self._episode_return,
             "episode_length": self._episode_length,
             "completion_length": max(0, self._episode_length - prompt),
+            "moving_length": moving_length(np.asarray(self._joint_speeds), self._reference_speed),
+            "completion_travel": (
+                float(np.linalg.norm(self._walker_state.root_position[:2] - self._prompt_end_root))
+                if self._joint_speeds
+                else 0.0
+            ),
             "fell_during_prompt": self._episode_length <= prompt,
         }

@@ -35,7 +35,13 @@ RESULTS = {
     "config": {"episodes": 2, "starts": None, "prompt_steps": 8, "max_steps": 24, "context": "cache"},
     "results": {
         "SYN_wave-0-196": {
-            completer: {"deterministic": {"episode_lengths": [length, length + 2], "reached_limit": 1}}
+            completer: {
+                "deterministic": {
+                    "episode_lengths": [length, length + 2],
+                    "episode_moving_lengths": [length // 2, length],
+                    "reached_limit": 1,
+                }
+            }
             for completer, length in (("gpt", 10), ("prior", 6), ("hold", 2))
         }
     },
@@ -159,13 +165,15 @@ def test_gpt_package_command_prints_the_difference_and_refuses_above_the_toleran
     stored = load_gpt(out).spec.provenance[CARD_KEY]
     assert stored["summary"] == CARD["summary"] and stored["scores"]["gpt/deterministic"] == 11.0
     assert stored["scores"]["hold/deterministic/at_limit"] == 0.5
+    assert stored["scores"]["gpt/deterministic/moving"] == 7.5  # mean of 5 and 10
 
     assert main(["gpt", "card", str(out)]) == 0
     page = capsys.readouterr().out
     assert re.findall(r"^## (.+)$", page, re.M) == list(SECTIONS)
     training = page.split("## Training")[1].split("## Inputs and outputs")[0]
-    for completer, steps in (("gpt", "11.0"), ("prior", "7.0"), ("hold", "3.0")):
-        assert f"| `{completer}` | deterministic | {steps} | " in training
+    for completer, moving, upright in (("gpt", 7.5, 11.0), ("prior", 4.5, 7.0), ("hold", 1.5, 3.0)):
+        seconds = f"{moving * 0.03:.2f} | {upright:.1f} | {upright * 0.03:.2f}"
+        assert f"| `{completer}` | deterministic | {moving:.1f} | {seconds} | " in training
     assert "mocap-hierarchy gpt train" in page.split("## Provenance")[1]
     assert f"{gentle_gpt().parameter_count():,} parameters" in page
     assert "`net.*` float16 (widened to float32 on loading)" in page

@@ -121,7 +121,9 @@ def test_gpt_complete_command_writes_a_table_and_a_file(trained_expert, tmp_path
     assert set(report["results"][snippet]) == set(report["overall"]) == completers
     for completer in completers:
         assert set(report["results"][snippet][completer]) == {"deterministic", "stochastic"}
-        assert set(report["overall"][completer]["deterministic"]) >= {"mean", "mean_seconds", "reached_limit_fraction"}
+        figures = report["overall"][completer]["deterministic"]
+        assert set(figures) >= {"mean", "mean_seconds", "moving_mean", "reached_limit_fraction"}
+        assert 0 <= figures["moving_mean"] <= figures["mean"]
         assert f"  {completer}  " in out
     assert snippet in out and "overall (1 snippets)" in out and "at the limit" in out
     assert main([*args, "--snippets", "SYN_x-0-9"]) == 2

@@ -131,3 +131,17 @@ def test_prefetching_batches_match_sample_batch(dataset):
         expected = windows.sample_batch(32, rng)
         for key, value in expected.items():
             np.testing.assert_array_equal(batch[key], value)
+
+
+def test_a_stream_started_at_a_step_continues_the_stream_that_drew_the_batches_before(dataset):
+    windows = WindowDataset(dataset, GROUPS, SamplerConfig(weighting="rwr"))
+    whole = windows.batches(8, seed=7, prefetch=1)
+    expected = [{k: v.numpy().copy() for k, v in next(whole).items()} for _ in range(5)][3:]
+    resumed = windows.batches(8, seed=7, prefetch=1, start=3)
+    for batch in expected:
+        got = next(resumed)
+        assert got.keys() == batch.keys()
+        for key, value in batch.items():
+            np.testing.assert_array_equal(got[key].numpy(), value)
+    fresh = {k: v.numpy() for k, v in next(windows.batches(8, seed=7, prefetch=1)).items()}
+    assert not np.array_equal(fresh["state"], expected[0]["state"])  # the start matters

@@ -50,3 +50,37 @@ def test_a_prompt_longer_than_the_snippet_is_refused(walker):
         MotionCompletionEnv(MotionCompletionConfig(snippets=(SHORT,), prompt_steps=400, max_steps=500), walker)
     with pytest.raises(ValueError, match="must exceed prompt_steps"):
         MotionCompletionEnv(MotionCompletionConfig(snippets=(SHORT,), prompt_steps=32, max_steps=32), walker)
+
+
+def test_moving_length_ends_at_the_first_still_second():
+    from tasks.downstream.motion_completion import STILL_FRACTION, STILL_WINDOW, moving_length
+
+    moving = np.full(100, 1.0)
+    assert moving_length(moving, reference_speed=1.0) == 100  # never still: all of it
+    stops = np.concatenate([np.full(40, 1.0), np.full(60, 0.5 * STILL_FRACTION)])
+    # the first window whose mean is below the threshold starts where enough still steps have entered it
+    first_still = next(i for i in range(len(stops) - STILL_WINDOW + 1) if stops[i : i + STILL_WINDOW].mean() < 0.25)
+    assert moving_length(stops, reference_speed=1.0) == first_still < 40
+    assert moving_length(np.zeros(STILL_WINDOW - 1), 1.0) == STILL_WINDOW - 1  # shorter than a window: no verdict
+
+
+def test_a_held_pose_stays_up_but_does_not_keep_moving(walker):
+    env = MotionCompletionEnv(
+        MotionCompletionConfig(snippets=("SYN_walk_slow-0-182",), prompt_steps=10, max_steps=200), walker
+    )
+    held: list[np.ndarray] = []
+
+    def hold_after_prompt(e: MotionCompletionEnv) -> np.ndarray:
+        if e.in_prompt:
+            return e.reference_actuation()
+        if not held:
+            held.append(e.reference_actuation())
+        return held[0]
+
+    infos, _, _ = run(env, hold_after_prompt)
+    assert infos[-1]["completion_length"] > 60  # upright for two seconds and more
+    assert infos[-1]["moving_length"] < 10  # but still from the start
+    held.clear()
+    played, _, _ = run(env, lambda e: e.reference_actuation())  # open-loop playback walks on until it falls
+    assert played[-1]["moving_length"] == played[-1]["completion_length"] > 30
+    assert played[-1]["completion_travel"] > 0.5

@@ -1,0 +1,90 @@
+"""A stopped `distill train` or `gpt train`, run again, writes the files an uninterrupted run writes, byte for byte.
+
+The stop lands between two checkpoints and in the middle of a logging interval, so the
+checkpoint must carry the optimiser, torch's random state (the VAE's noise, the GPT's
+dropout), the batch stream's position and the metrics of the interval in progress.
+``tests/distill/test_kill_resume.py`` does the same with ``SIGKILL`` on the real command.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import json
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from distill import trainer as trainer_module
+from distill.gpt.model import GptConfig
+from distill.gpt.training import default_gpt_sampler, train_gpt
+from distill.npmp.model import NpmpConfig
+from distill.npmp.training import default_sampler, train_npmp
+from distill.trainer import TrainerConfig
+from foundation.interrupts import StopFlag, TrainingStopped
+from tests.fault_injection import digests
+
+RUN_RECORDS = {"distill.json", "gpt.json"}
+"""Run summaries: they hold the wall time, the finishing date and the step a call resumed from (a stop changes them)."""
+
+TIMED = ("events.out.tfevents", *RUN_RECORDS)
+
+
+class _StopAfter(StopFlag):
+    """A stop request that arrives after ``steps`` optimiser steps (the loop asks once per step)."""
+
+    def __init__(self, steps: int) -> None:
+        super().__init__()
+        self.left = steps
+
+    @property
+    def requested(self) -> bool:
+        self.left -= 1
+        if self.left == 0:
+            self.signal = 15
+        return self.signal is not None
+
+
+def _stopping_after(steps: int):
+    @contextlib.contextmanager
+    def stop_requests() -> Iterator[StopFlag]:
+        yield _StopAfter(steps)
+
+    return stop_requests
+
+
+def _npmp(data: Path, out: Path, trainer: TrainerConfig) -> None:
+    model = NpmpConfig(latent_size=4, encoder_layers=(16, 16), decoder_layers=(16, 16, 16))
+    train_npmp(data, out, model, trainer, dataclasses.replace(default_sampler(), window=5), progress=False)
+
+
+def _gpt(data: Path, out: Path, trainer: TrainerConfig) -> None:
+    model = GptConfig(layers=1, heads=2, embedding_size=16, block_size=8, residual_dropout=0.1)
+    train_gpt(data, out, model, trainer, default_gpt_sampler(model), progress=False)
+
+
+def _run_record(out: Path) -> dict:
+    name = next(name for name in RUN_RECORDS if (out / name).is_file())
+    record = json.loads((out / name).read_text())
+    return {key: value for key, value in record.items() if key not in ("seconds", "resumed_from", "finished")}
+
+
+@pytest.mark.parametrize("job", [_npmp, _gpt], ids=["distill", "gpt"])
+def test_a_stopped_run_resumes_to_the_uninterrupted_runs_files(job, rollout_dir, tmp_path, monkeypatch):
+    trainer = TrainerConfig(steps=30, batch_size=8, learning_rate=1e-3, log_every=5, checkpoint_every=10, device="cpu")
+    out = tmp_path / "run"  # both runs write there: the card names the folder
+    job(rollout_dir, out, trainer)
+    out.rename(tmp_path / "whole")
+
+    with monkeypatch.context() as patched:
+        patched.setattr(trainer_module, "stop_requests", _stopping_after(13))
+        with pytest.raises(TrainingStopped, match="stopped at step 13 of 30"):
+            job(rollout_dir, out, trainer)
+    job(rollout_dir, out, trainer)
+    out.rename(tmp_path / "stopped")
+
+    whole, stopped = digests(tmp_path / "whole", TIMED), digests(tmp_path / "stopped", TIMED)
+    assert "checkpoint.pt" in whole and "history.json" in whole
+    assert stopped == whole
+    assert _run_record(tmp_path / "stopped") == _run_record(tmp_path / "whole")
