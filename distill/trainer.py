@@ -25,6 +25,7 @@ with weight decay, a model may also offer ``optimizer_groups(weight_decay)``
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
@@ -44,9 +45,11 @@ from tqdm.auto import tqdm
 
 from distill.trainer_config import TrainerConfig  # defined there (light), used and re-exported here
 from foundation.atomic import atomic_path, write_json
+from foundation.divergence import TrainingDiverged, first_non_finite
 from foundation.interrupts import stop_requests
 from foundation.provenance import now
 from foundation.resume import SettingsMismatchError, check_same_settings, settings_record
+from foundation.run_lock import run_lock
 
 CHECKPOINT = "checkpoint.pt"
 HISTORY = "history.json"
@@ -80,6 +83,15 @@ def distributed_from_environment() -> Distributed:
     if world <= 1:
         return Distributed()
     return Distributed(int(os.environ["RANK"]), world, int(os.environ.get("LOCAL_RANK", "0")))
+
+
+def writer_lock(folder: str | os.PathLike) -> contextlib.AbstractContextManager[Any]:
+    """The run lock of ``folder`` (:func:`foundation.run_lock.run_lock`) in the process that writes it.
+
+    Under ``torchrun`` only rank 0 writes files, so only rank 0 takes the lock (the other ranks of the
+    same run would otherwise be refused); alone, the process takes it.
+    """
+    return run_lock(folder) if distributed_from_environment().is_main else contextlib.nullcontext()
 
 
 def resolve_device(name: str, place: Distributed) -> torch.device:
@@ -130,8 +142,8 @@ def train(
 
     Args:
         model: An ``nn.Module``; ``model(batch)`` returns ``(scalar loss, {name: 0-d tensor})``
-            (detached tensors, read back only when logged; the one per-step wait is the finiteness check of the loss,
-            kept so a NaN never reaches the optimiser).
+            (detached tensors, read back only when logged; the one per-step wait is the finiteness check of the loss
+            and the gradient norm, kept so a NaN never reaches the weights).
         batches: ``batches(seed, batch_size, device, start)`` yields batches forever, beginning with the
             batch a stream from ``seed`` draws after ``start`` batches (a resumed run's step).
         out: Output folder (checkpoint, history, TensorBoard logs).
@@ -144,6 +156,8 @@ def train(
     Raises:
         CheckpointMismatchError: The folder holds a checkpoint of other settings.
         TrainingStopped: Ctrl-C or ``SIGTERM`` arrived; the checkpoint of the step reached is saved.
+        TrainingDiverged: The loss, a gradient or a weight became NaN or infinite; the run stopped at once and
+            the checkpoint on disk is the last one written from finite weights.
     """
     started = time.perf_counter()
     out = Path(out)
@@ -164,14 +178,18 @@ def train(
         log.restore(state)
         _restore_random_state(state, device)
     stream = batches(_sampling_seed(config.seed, place.rank), config.batch_size // place.world_size, device, step)
+    guard = _DivergenceGuard(description, out / CHECKPOINT, step if state is not None else None)
     with stop_requests() as stop:
         while step < config.steps:
-            loss, grad_norm, values = _optimiser_step(trained, model, optimizer, next(stream), config.grad_clip, step)
+            guard.step = step
+            loss, grad_norm, values = _optimiser_step(trained, model, optimizer, next(stream), config.grad_clip, guard)
             step += 1
             log.step(step, {"loss": loss, "grad_norm": grad_norm, **values})
             stopping = stop.requested and place.world_size == 1  # under torchrun, every replica ends as it is told
             if place.is_main and (step % config.checkpoint_every == 0 or step == config.steps or stopping):
+                guard.check_weights(model, step)  # a checkpoint is written from finite weights only
                 _save_checkpoint(out, model, optimizer, step, resume_settings, log)
+                guard.saved = step
             if stopping:
                 log.close()
                 where = f"{description}: stopped at step {step} of {config.steps}"
@@ -235,19 +253,53 @@ def _sampling_seed(seed: int, rank: int) -> int:
 
 
 def _optimiser_step(
-    trained: nn.Module, model: nn.Module, optimizer: torch.optim.Optimizer, batch: dict, grad_clip: float, step: int
+    trained: nn.Module,
+    model: nn.Module,
+    optimizer: torch.optim.Optimizer,
+    batch: dict,
+    grad_clip: float,
+    guard: _DivergenceGuard,
 ) -> tuple[torch.Tensor, torch.Tensor, dict[str, torch.Tensor]]:
-    """One clipped optimiser step; refuses a non-finite loss before it reaches the weights."""
+    """One clipped optimiser step; a non-finite loss or gradient stops the run before it reaches the weights."""
     loss, values = trained(batch)
     optimizer.zero_grad(set_to_none=True)
     loss.backward()
     grad_norm = torch.nn.utils.clip_grad_norm_(model.parameters(), grad_clip)
-    if not torch.isfinite(loss):
-        raise FloatingPointError(
-            f"the loss became {loss.item()} at step {step}; lower the learning rate or check the data"
-        )
+    if not bool(torch.isfinite(loss) & torch.isfinite(grad_norm)):  # the step's one wait for the device
+        guard.stop({"loss": loss, "gradient norm": grad_norm})
     optimizer.step()
     return loss.detach(), grad_norm, values
+
+
+class _DivergenceGuard:
+    """Stops a run whose loss, gradients or weights become NaN or infinite (:class:`TrainingDiverged`).
+
+    Args:
+        description: The run's label (the progress bar's).
+        checkpoint: Where the checkpoint goes.
+        saved: The step of the checkpoint on disk (None: none yet).
+    """
+
+    def __init__(self, description: str, checkpoint: Path, saved: int | None) -> None:
+        self.description, self.checkpoint, self.saved = description, checkpoint, saved
+        self.step = saved or 0
+
+    def stop(self, quantities: dict[str, Any]) -> None:
+        """Raises :class:`TrainingDiverged` naming the first non-finite quantity."""
+        found = first_non_finite(quantities.items()) or (next(iter(quantities)), math.nan)
+        kept = (
+            f"the last good checkpoint (step {self.saved}) is kept in {self.checkpoint}"
+            if self.saved is not None
+            else "no checkpoint had been written yet"
+        )
+        raise TrainingDiverged(self.description, self.step, found[0], found[1], kept)
+
+    def check_weights(self, model: nn.Module, step: int) -> None:
+        """Raises when a weight is not finite (before a checkpoint is written from them)."""
+        self.step = step
+        if first_non_finite(model.named_parameters()) is not None:
+            named = {f"weight {name}": parameter for name, parameter in model.named_parameters()}
+            self.stop(named)
 
 
 class _Log:

@@ -42,6 +42,8 @@ class RaiseHandConfig:
 class RaiseHand(WalkerTaskEnv):
     """Hold the left hand up or down, as a command drawn at the start of each episode says."""
 
+    episode_attributes = ("_target",)  # what an episode changes: saved by get_state(), so a resumed run continues
+
     def __init__(self, config: RaiseHandConfig) -> None:
         super().__init__({"hand_command": 2}, config.max_steps)  # task observation: (command, height to go)
         self.config = config

@@ -11,6 +11,11 @@ rebuild data: numpy's array, dtype and scalar constructors (under their numpy
 else is ever looked up, so unpickling cannot import a module or call a
 function of the file's choosing. :func:`stub_state` reads a recorded object's
 attributes back.
+
+No object a pickle rebuilds may be larger than the pickle itself: numpy's array constructor
+and ``bytearray`` are handed the pickle's size as a bound (a pickle can ask them for any size,
+and a damaged one may ask for terabytes), so reading a pickle takes memory of the order of its
+size.
 """
 
 from __future__ import annotations
@@ -121,12 +126,49 @@ DATA_GLOBALS: dict[str, Any] = {
 """Constructors of plain data that pickles name and that are used as themselves."""
 
 
-class InertUnpickler(pickle.Unpickler):
-    """A :class:`pickle.Unpickler` that resolves globals only to data constructors or stubs (module docstring)."""
+class OversizePickleError(pickle.UnpicklingError):
+    """A pickle asks for an object larger than itself."""
 
-    def __init__(self, file: io.BufferedIOBase | io.BytesIO) -> None:
+
+def bounded_globals(limit: int) -> dict[str, Any]:
+    """The data constructors that can be asked for any size, each refusing more than ``limit`` bytes."""
+    multiarray = importlib.import_module("numpy._core.multiarray")
+
+    def reconstruct(subtype: Any, shape: Any, dtype: Any) -> Any:
+        size = int(np.prod(np.asarray(shape, dtype=np.float64))) * np.dtype(dtype).itemsize
+        if size > limit:
+            raise OversizePickleError(f"the pickle asks numpy for an array of {size} bytes, more than its own {limit}")
+        return multiarray._reconstruct(np.ndarray if subtype is NDARRAY else subtype, shape, dtype)
+
+    def bounded_bytearray(*args: Any) -> bytearray:
+        if args and isinstance(args[0], int) and args[0] > limit:
+            raise OversizePickleError(f"the pickle asks for a buffer of {args[0]} bytes, more than its own {limit}")
+        return bytearray(*args)
+
+    found: dict[str, Any] = {"numpy.ndarray": NDARRAY, "builtins.bytearray": bounded_bytearray}
+    for package in ("numpy.core", "numpy._core"):
+        found[f"{package}.multiarray._reconstruct"] = reconstruct
+    return found
+
+
+NDARRAY = object()
+"""What ``numpy.ndarray`` resolves to in an inert pickle: a name for the array constructor, not a callable."""
+
+
+class InertUnpickler(pickle.Unpickler):
+    """A :class:`pickle.Unpickler` that resolves globals only to data constructors or stubs (module docstring).
+
+    Args:
+        file: The pickle.
+        limit: The most bytes one rebuilt array or buffer may take (default: the pickle's own size when
+            ``file`` is a :class:`io.BytesIO`, else 1 GiB).
+    """
+
+    def __init__(self, file: io.BufferedIOBase | io.BytesIO, limit: int | None = None) -> None:
         super().__init__(file)
-        self._real = {**numpy_globals(), **DATA_GLOBALS}
+        if limit is None:
+            limit = file.getbuffer().nbytes if isinstance(file, io.BytesIO) else 1 << 30
+        self._real = {**numpy_globals(), **DATA_GLOBALS, **bounded_globals(limit)}
         self._stubs: dict[str, type[InertStub]] = {}
         self.named: set[str] = set()
         """Every global the pickle named (for error messages and provenance)."""

@@ -5,13 +5,16 @@ SB3 is imported inside the functions, so importing this module stays cheap.
 
 from __future__ import annotations
 
+import json
 import math
+import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from foundation.atomic import atomic_path
+from foundation.divergence import TrainingDiverged, first_non_finite
 from foundation.ppo import PpoConfig
 
 
@@ -20,13 +23,23 @@ def save_sb3(
 ) -> None:
     """Saves a stable-baselines3 model and its ``VecNormalize`` in SB3's own formats, each atomically.
 
+    Weights or normaliser statistics that are NaN or infinite are never written: the files
+    already there (the last good ones) stay.
+
     Args:
         model: The SB3 algorithm (``model.save``).
         normaliser: Its ``VecNormalize`` (``normaliser.save``).
         model_path: Target of the model (``.zip``).
         normaliser_path: Target of the normaliser (``.pkl``).
         exclude: Model attributes SB3 should leave out of the file.
+
+    Raises:
+        TrainingDiverged: A weight or statistic is not finite; nothing was written.
     """
+    problem = non_finite_state(model, normaliser)
+    if problem is not None:
+        kept = f"nothing was written to {model_path.parent} (the files there are the last good ones)"
+        raise TrainingDiverged(f"refusing to save {model_path.name}", model.num_timesteps, *problem, kept)
     with atomic_path(model_path) as temporary:
         zipped = temporary.with_suffix(".zip")  # SB3 appends .zip to names without it
         try:
@@ -36,6 +49,39 @@ def save_sb3(
             zipped.unlink(missing_ok=True)
     with atomic_path(normaliser_path) as temporary:
         normaliser.save(str(temporary))
+
+
+def non_finite_state(model: Any, normaliser: Any = None) -> tuple[str, float] | None:
+    """The first policy parameter or normaliser statistic of an SB3 model that is NaN or infinite.
+
+    Args:
+        model: The SB3 algorithm.
+        normaliser: Its ``VecNormalize`` (None: the model's own, if it has one).
+
+    Returns:
+        ``(what, value)``, e.g. ``("policy parameter action_net.weight", nan)``, or None when all are finite.
+    """
+    named: list[tuple[str, Any]] = [(f"policy parameter {n}", p) for n, p in model.policy.named_parameters()]
+    normaliser = normaliser if normaliser is not None else model.get_vec_normalize_env()
+    observations = getattr(normaliser, "obs_rms", None)
+    statistics = observations.items() if isinstance(observations, dict) else [("", observations)]
+    for key, rms in statistics:
+        if rms is not None:
+            label = f"observation {key}".strip()
+            named += [(f"normaliser {label} mean", rms.mean), (f"normaliser {label} variance", rms.var)]
+    returns = getattr(normaliser, "ret_rms", None)
+    if returns is not None:
+        named.append(("normaliser return variance", returns.var))
+    return first_non_finite(named)
+
+
+def saved_steps(model_path: str | Path) -> int | None:
+    """The environment steps a model file of :func:`save_sb3` was saved at (None: no readable file)."""
+    try:
+        with zipfile.ZipFile(model_path) as archive:
+            return int(json.loads(archive.read("data"))["num_timesteps"])
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile):
+        return None
 
 
 def sb3_policy_layout(model) -> tuple[dict[str, int], tuple[int, ...]]:

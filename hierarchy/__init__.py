@@ -25,7 +25,7 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from hierarchy.decoder import DecoderFileError, DecoderMismatchError, DecoderSpec, LatentDecoder, load_decoder
     from hierarchy.latent_env import LatentActionEnv, LatentActionVecEnv
     from hierarchy.latent_prior import LatentPrior, load_latent_prior
-    from hierarchy.task_policy import TaskPolicy, load_task_policy
+    from hierarchy.task_policy import TaskPolicy, TaskPolicyFileError, load_task_policy
     from hierarchy.transfer.config import TransferConfig
     from hierarchy.transfer.evaluation import EvaluationSummary, evaluate_transfer, track_speed
     from hierarchy.transfer.training import train_transfer
@@ -40,6 +40,7 @@ __all__ = [
     "LatentDecoder",
     "LatentPrior",
     "TaskPolicy",
+    "TaskPolicyFileError",
     "TransferConfig",
     "evaluate_transfer",
     "load_decoder",
@@ -61,6 +62,7 @@ __getattr__, __dir__ = lazy_exports(
         "LatentDecoder": "hierarchy.decoder",
         "LatentPrior": "hierarchy.latent_prior",
         "TaskPolicy": "hierarchy.task_policy",
+        "TaskPolicyFileError": "hierarchy.task_policy",
         "TransferConfig": "hierarchy.transfer.config",
         "evaluate_transfer": "hierarchy.transfer.evaluation",
         "load_decoder": "hierarchy.decoder",

@@ -8,7 +8,6 @@ nothing but the file it describes (and, for a shipped file, its shipped companio
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
@@ -16,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from foundation.fingerprints import file_sha256
+from foundation.json_fields import parse_json, require_mapping
 from hierarchy.model_card import CARD_KEY, ModelCardError
 from tasks.tracking.metrics import TRACKING_METRICS
 
@@ -102,14 +102,13 @@ def read_file_facts(path: str | os.PathLike) -> FileFacts:
             shapes = {name: tuple(part.get_shape()) for name, part in slices.items()}
     except Exception as failure:  # safetensors raises its own error types for corrupt headers
         raise ModelCardError(f"{path} is not a readable safetensors file ({failure})") from None
-    try:
-        description = json.loads(metadata[METADATA_KEY])
-    except (KeyError, json.JSONDecodeError):
-        raise ModelCardError(f"{path} has no mocap-hierarchy description, so it has no model card") from None
-    if not isinstance(description, dict):
-        raise ModelCardError(f"{path}: its description is not a JSON mapping")
-    file_format = str(description.pop("format", ""))
-    version = int(description.pop("schema_version", 0))
+    if METADATA_KEY not in metadata:
+        raise ModelCardError(f"{path} has no mocap-hierarchy description, so it has no model card")
+    where = f"{path}: its description"
+    description = require_mapping(parse_json(metadata[METADATA_KEY], where, ModelCardError), where, ModelCardError)
+    file_format, version = description.pop("format", ""), description.pop("schema_version", 0)
+    if not isinstance(file_format, str) or not isinstance(version, int) or isinstance(version, bool):
+        raise ModelCardError(f"{where} names its format or schema version with values of another type; it is damaged")
     return FileFacts(path, path.stat().st_size, file_sha256(path), file_format, version, description, dtypes, shapes)
 
 

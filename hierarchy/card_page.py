@@ -23,6 +23,7 @@ from typing import Any
 import hierarchy.pretrained as pretrained
 from foundation.atomic import write_text
 from foundation.interfaces import flat_observation_port, vector_port
+from foundation.json_fields import typed_value
 from foundation.onnx_files import ONNX_OPSET
 from hierarchy.card_markdown import (
     CARD_FILE,
@@ -48,7 +49,7 @@ from hierarchy.card_markdown import (
     text,
 )
 from hierarchy.decoder import DECODER_FORMAT, DecoderSpec, load_decoder
-from hierarchy.latent_prior import PRIOR_FORMAT, shipped_prior_name, shipped_priors
+from hierarchy.latent_prior import PRIOR_FORMAT, load_latent_prior, shipped_prior_name, shipped_priors
 from hierarchy.model_card import CARD_KEY, ModelCardError, check_card
 
 TASK_POLICY_FORMAT = "mocap_hierarchy.task_policy"
@@ -250,6 +251,7 @@ def _prior_command(context: CardContext) -> str:
 def prior_card(context: CardContext) -> CardPage:
     """The card of a latent prior file (:mod:`hierarchy.latent_prior`)."""
     facts, card, links = context.facts, context.card, context.links
+    load_latent_prior(facts.path)  # the file is checked whole (fields, tensors) before its card is drawn
     description = facts.description
     sizes = {str(k): int(v) for k, v in description.get("observation_sizes", {}).items()}
     latent_size, hidden = int(description.get("latent_size", 0)), description.get("hidden_layers", [])
@@ -352,10 +354,29 @@ def _decoder_check(decoder: str | None, behaviour: str) -> str:
 # ----------------------------------------------------------------------------------------------- task policies
 
 
+TASK_POLICY_FIELDS: dict[str, Any] = {
+    "task": str,
+    "task_overrides": dict[str, Any],
+    "observation_sizes": dict[str, int],
+    "hidden_layers": tuple[int, ...],
+    "action_size": int,
+    "action_low": float,
+    "action_high": float,
+    "obs_clip": float,
+    "decoder": dict[str, Any] | None,
+    "provenance": dict[str, Any],
+}
+"""The task policy file's fields a card reads, with their types (``hierarchy.task_policy.TaskPolicySpec``'s; named
+here so rendering a card loads no simulator)."""
+
+
 def task_policy_card(context: CardContext) -> CardPage:
     """The card of a task policy file (:mod:`hierarchy.task_policy`), from its description and model card."""
     facts, card, links = context.facts, context.card, context.links
     description = facts.description
+    for name, annotation in TASK_POLICY_FIELDS.items():  # the fields the card reads, of their types
+        if name in description:
+            typed_value(description[name], annotation, f"{facts.path}: task policy field {name!r}", ModelCardError)
     task, decoder = description.get("task", "?"), description.get("decoder") or None
     sizes = {str(k): int(v) for k, v in description.get("observation_sizes", {}).items()}
     action_size = int(description.get("action_size", 0))

@@ -41,10 +41,14 @@ import numpy as np
 import torch
 from torch import nn
 
-from foundation.described_file import read_described, write_described
+from foundation.described_file import check_layout, read_described, write_described
 from foundation.interfaces import flat_observation_port, vector_port
+from foundation.json_fields import dataclass_from_json
 from foundation.networks import ACTIVATIONS, mlp
 from hierarchy.pretrained import names_hint, resolve_decoder
+
+FLOAT32_MAX = 3.4028234663852886e38
+"""The largest float32: the decoder's bounds clamp float32 actions."""
 
 DECODER_FORMAT = "mocap_hierarchy.decoder"
 DECODER_SCHEMA_VERSION = 1
@@ -95,6 +99,12 @@ class DecoderSpec:
             raise DecoderFileError(f"unknown activation {self.activation!r}; known: {', '.join(ACTIVATIONS)}")
         if self.latent_size < 1 or self.action_size < 1 or not self.observation_sizes:
             raise DecoderFileError("a decoder needs observations, a latent and actions")
+        if min(self.observation_sizes.values()) < 1 or (self.hidden_layers and min(self.hidden_layers) < 1):
+            raise DecoderFileError("observation sizes and hidden layer sizes must be at least 1")
+        if not all(abs(v) <= FLOAT32_MAX for v in (self.latent_bound, self.action_low, self.action_high)):
+            raise DecoderFileError("latent_bound, action_low and action_high must be finite float32 numbers")
+        if self.latent_bound <= 0:
+            raise DecoderFileError(f"latent_bound {self.latent_bound} must be positive")
         if self.action_low >= self.action_high:
             raise DecoderFileError(f"action bounds [{self.action_low}, {self.action_high}] are empty")
 
@@ -129,15 +139,14 @@ class DecoderSpec:
         return {"format": DECODER_FORMAT, "schema_version": DECODER_SCHEMA_VERSION, **asdict(self)}
 
     @classmethod
-    def from_json(cls, data: dict[str, Any], where: str) -> DecoderSpec:
-        """Builds the spec from a file's description (format and version already removed); errors name the file."""
-        fields = dict(data)
-        fields["hidden_layers"] = tuple(fields.get("hidden_layers", ()))
-        fields["observation_sizes"] = {str(k): int(v) for k, v in fields.get("observation_sizes", {}).items()}
-        try:
-            return cls(**fields)
-        except TypeError as error:
-            raise DecoderFileError(f"{where}: {error}") from None
+    def from_json(cls, data: Any, where: str) -> DecoderSpec:
+        """Builds the spec from a file's description (format and version already removed).
+
+        Raises:
+            DecoderFileError: Naming the file and the field: not a mapping, a field missing, unknown or of
+                another type (a list, a number or null where a mapping belongs), or a value out of range.
+        """
+        return dataclass_from_json(cls, data, f"{where}: decoder description", DecoderFileError)
 
 
 def decoder_network(spec: DecoderSpec) -> nn.Sequential:
@@ -337,8 +346,20 @@ def register_standardiser(
     module.register_buffer("observation_std", std)
 
 
+DECODER_REMEDY = (
+    "; copy or download it again, or write a new one (`mocap-hierarchy distill train`, "
+    "`mocap-hierarchy decoder import-mocapact`)"
+)
+"""How a message about a damaged decoder file ends: where an intact one comes from."""
+
+
 def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") -> LatentDecoder:
     """Loads a decoder file (tensors and JSON only; nothing is unpickled).
+
+    The file is checked before any module is built: its description field by field, then every
+    tensor against the architecture it declares (on torch's ``meta`` device, so a description
+    declaring a huge network allocates nothing), and no weight may be NaN or infinite. Loading
+    takes about as much memory as the file's size (twice that for float16 weights).
 
     Args:
         path: A file written by :meth:`LatentDecoder.save`, or the name of a
@@ -347,7 +368,8 @@ def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") ->
         device: Where to put the weights (always float32).
 
     Raises:
-        DecoderFileError: Missing file, another format, a newer schema, or corrupt content.
+        DecoderFileError: Missing file, another format, a newer schema, or damaged content (naming the
+            file and what is wrong: a field of another type, a tensor of another shape, NaN weights ...).
     """
     path = resolve_decoder(path)
     description, tensors = read_described(
@@ -359,15 +381,52 @@ def load_decoder(path: str | os.PathLike, device: str | torch.device = "cpu") ->
         missing_error=DecoderFileError,
         missing_hint="; `mocap-hierarchy distill train` writes one, `mocap-hierarchy decoder import-mocapact` "
         f"converts MoCapAct's ({names_hint()})",
+        remedy=DECODER_REMEDY,
+        finite=True,
     )
-    spec = DecoderSpec.from_json(description, str(path))
+    where = str(path)
+    spec = DecoderSpec.from_json(description, where)
+    mean, std = standardiser_tensors(tensors, spec.observation_size, where, "decoder", DecoderFileError)
+    check_layout(
+        lambda: decoder_network(spec),
+        tensors,
+        where,
+        "decoder",
+        DecoderFileError,
+        prefix="net.",
+        layers=len(spec.hidden_layers),
+    )
+    state = {k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")}
+    decoder = LatentDecoder(spec, mean, std)
+    decoder.net.load_state_dict(state)
+    with torch.no_grad():
+        probe = decoder(decoder.observation_mean[None], torch.zeros(1, spec.latent_size))
+    if not bool(torch.isfinite(probe).all()):
+        raise DecoderFileError(
+            f"{where}: the decoder computes NaN actions at its mean observation (z = 0): its weights are damaged "
+            f"(finite, but too large){DECODER_REMEDY}"
+        )
+    return decoder.to(device)
+
+
+def standardiser_tensors(
+    tensors: dict[str, torch.Tensor], size: int, where: str, what: str, error: type[Exception]
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """A file's ``observation_mean`` and ``observation_std``: ``size`` floating-point values each, a positive std.
+
+    Raises:
+        error: Naming the file and the tensor that is missing, of another shape or type, or not positive.
+    """
     missing = [k for k in ("observation_mean", "observation_std") if k not in tensors]
     if missing:
-        raise DecoderFileError(f"{path} lacks tensors {missing}")
-    state = {k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")}
-    decoder = LatentDecoder(spec, tensors["observation_mean"], tensors["observation_std"])
-    try:
-        decoder.net.load_state_dict(state)
-    except RuntimeError as error:
-        raise DecoderFileError(f"{path}: weights do not match the described architecture ({error})") from None
-    return decoder.to(device)
+        raise error(f"{where} lacks tensors {missing}; the file is damaged or not a {what} file")
+    for name in ("observation_mean", "observation_std"):
+        tensor = tensors[name]
+        if tuple(tensor.shape) != (size,) or not tensor.is_floating_point():
+            raise error(
+                f"{where}: tensor {name} is {tensor.dtype} of shape {tuple(tensor.shape)}; the observations its "
+                f"description lists need ({size},) floating-point values"
+            )
+    if not bool((tensors["observation_std"] > 0).all()):
+        raise error(f"{where}: tensor observation_std holds values that are not positive")
+    return tensors["observation_mean"], tensors["observation_std"]

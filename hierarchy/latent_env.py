@@ -20,18 +20,26 @@ With a :class:`hierarchy.latent_prior.LatentPrior` the high-level action is a
 *residual*: the decoder receives ``z = mu(s) + a`` (clipped to the bound),
 ``mu(s)`` recomputed on every low-level step, so ``a = 0`` does what the
 training motions did from the current state.
+
+Both forms have ``get_state``/``set_state`` (:mod:`tasks.env_state`): the decoder and the prior
+are frozen, so their state is the last observation the next latent is decoded on.
+:class:`LatentActionEnv`'s snapshot covers the task it wraps too; :class:`LatentActionVecEnv`'s
+covers only itself (its environments' snapshots come from ``venv.env_method("get_state")``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
+from foundation.snapshots import plain_copy
 from hierarchy.decoder import DecoderMismatchError, LatentDecoder
 from hierarchy.latent_prior import LatentPrior
+from tasks.env_state import check_state_class, get_env_state, set_env_state, state_class
 
 
 def observation_sizes(space: gym.Space) -> dict[str, int]:
@@ -149,6 +157,30 @@ class LatentActionEnv(gym.Wrapper):
         info = {**info, "low_level_action": low_level, "latent": z}
         return observation, total, terminated, truncated, info
 
+    def get_state(self) -> dict[str, Any]:
+        """This environment's complete state as plain data, the wrapped task's included.
+
+        Returns:
+            ``{"class", "observation", "env"}``: the class name, the last observation (the
+            decoder's next input; ``{}`` before the first reset) and
+            :func:`tasks.env_state.get_env_state` of the wrapped environment.
+        """
+        return {
+            "class": state_class(self),
+            "observation": plain_copy(self._observation, "observation"),
+            "env": get_env_state(self.env),
+        }
+
+    def set_state(self, state: Mapping[str, Any]) -> None:
+        """Restores a :meth:`get_state` into this wrapper and the task it wraps.
+
+        Raises:
+            tasks.env_state.EnvStateError: The snapshot does not fit this wrapper or its task.
+        """
+        check_state_class(self, state)
+        set_env_state(self.env, state["env"])
+        self._observation = plain_copy(state["observation"], "observation")
+
 
 class LatentActionVecEnv(VecEnvWrapper):
     """A stable-baselines3 ``VecEnv`` with a latent action space, decoded in one batch.
@@ -219,3 +251,27 @@ class LatentActionVecEnv(VecEnvWrapper):
             if ended.all():
                 break
         return self._observation, totals, ended, final_infos
+
+    def get_state(self) -> dict[str, Any]:
+        """This wrapper's own state: the last observations and the latents awaiting :meth:`step_wait`.
+
+        The vectorised environments below keep theirs (``venv.env_method("get_state")``).
+
+        Returns:
+            ``{"class", "observation", "latent"}`` (None where not yet set).
+        """
+        return {
+            "class": state_class(self),
+            "observation": None if self._observation is None else plain_copy(dict(self._observation)),
+            "latent": None if self._latent is None else self._latent.copy(),
+        }
+
+    def set_state(self, state: Mapping[str, Any]) -> None:
+        """Restores a :meth:`get_state` of this wrapper (not of the environments below).
+
+        Raises:
+            tasks.env_state.EnvStateError: The snapshot is of another class.
+        """
+        check_state_class(self, state)
+        self._observation = None if state["observation"] is None else plain_copy(state["observation"])
+        self._latent = None if state["latent"] is None else np.array(state["latent"], dtype=np.float32)

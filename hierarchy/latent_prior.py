@@ -35,10 +35,11 @@ import torch
 from torch import nn
 
 import hierarchy.pretrained as pretrained
-from foundation.described_file import read_described, write_described
+from foundation.described_file import check_layout, read_described, write_described
+from foundation.json_fields import dataclass_from_json
 from foundation.networks import ACTIVATIONS, mlp
 from foundation.shipped import ShippedArtifacts
-from hierarchy.decoder import DecoderMismatchError, LatentDecoder, register_standardiser
+from hierarchy.decoder import DecoderMismatchError, LatentDecoder, register_standardiser, standardiser_tensors
 
 PRIOR_FORMAT = "mocap_hierarchy.latent_prior"
 PRIOR_SCHEMA_VERSION = 1
@@ -75,6 +76,8 @@ class LatentPriorSpec:
             raise LatentPriorFileError(f"unknown activation {self.activation!r}; known: {', '.join(ACTIVATIONS)}")
         if self.latent_size < 1 or not self.observation_sizes:
             raise LatentPriorFileError("a latent prior needs observations and a latent")
+        if min(self.observation_sizes.values()) < 1 or (self.hidden_layers and min(self.hidden_layers) < 1):
+            raise LatentPriorFileError("observation sizes and hidden layer sizes must be at least 1")
 
     @property
     def observation_size(self) -> int:
@@ -182,8 +185,11 @@ def shipped_prior_name(path: str | os.PathLike) -> str | None:
 def load_latent_prior(source: str | os.PathLike, device: str | torch.device = "cpu") -> LatentPrior:
     """Loads a prior file, or the prior shipped with the decoder named ``source``; frozen.
 
+    Checked like a decoder file (:func:`hierarchy.decoder.load_decoder`): every field, every tensor's
+    shape against the declared network before it is built, no NaN or infinite weight.
+
     Raises:
-        LatentPriorFileError: Missing file, another format, a newer schema or corrupt content.
+        LatentPriorFileError: Missing file, another format, a newer schema or damaged content.
     """
     path = resolve_prior(source)
     shipped = ", ".join(shipped_priors()) or "none"
@@ -195,20 +201,28 @@ def load_latent_prior(source: str | os.PathLike, device: str | torch.device = "c
         error=LatentPriorFileError,
         missing_error=LatentPriorFileError,
         missing_hint=f"; `mocap-hierarchy decoder fit-prior` writes one (shipped priors: {shipped})",
+        remedy="; copy it again, or fit a new one with `mocap-hierarchy decoder fit-prior`",
+        finite=True,
     )
-    description["hidden_layers"] = tuple(description.get("hidden_layers", ()))
-    description["observation_sizes"] = {str(k): int(v) for k, v in description.get("observation_sizes", {}).items()}
-    try:
-        spec = LatentPriorSpec(**description)
-    except TypeError as error:
-        raise LatentPriorFileError(f"{path}: {error}") from None
-    missing = [k for k in ("observation_mean", "observation_std") if k not in tensors]
-    if missing:
-        raise LatentPriorFileError(f"{path} lacks tensors {missing}")
-    prior = LatentPrior(spec, tensors["observation_mean"], tensors["observation_std"])
-    weights = {k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")}
-    try:
-        prior.net.load_state_dict(weights)
-    except RuntimeError as error:
-        raise LatentPriorFileError(f"{path}: weights do not match the described architecture ({error})") from None
+    where = str(path)
+    spec = dataclass_from_json(LatentPriorSpec, description, f"{where}: latent prior description", LatentPriorFileError)
+    mean, std = standardiser_tensors(tensors, spec.observation_size, where, "latent prior", LatentPriorFileError)
+    check_layout(
+        lambda: mlp(spec.observation_size, spec.hidden_layers, spec.latent_size, spec.activation, False),
+        tensors,
+        where,
+        "latent prior",
+        LatentPriorFileError,
+        prefix="net.",
+        layers=len(spec.hidden_layers),
+    )
+    prior = LatentPrior(spec, mean, std)
+    prior.net.load_state_dict({k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")})
+    with torch.no_grad():
+        probe = prior(prior.observation_mean[None])
+    if not bool(torch.isfinite(probe).all()):
+        raise LatentPriorFileError(
+            f"{where}: the prior computes NaN or infinite latents at the mean observation: its weights are damaged; "
+            "fit a new one with `mocap-hierarchy decoder fit-prior`"
+        )
     return prior.freeze().to(device)

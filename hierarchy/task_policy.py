@@ -20,7 +20,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from foundation.described_file import read_described, write_described
+from foundation.described_file import check_layout, read_described, write_described
+from foundation.json_fields import dataclass_from_json
 from foundation.networks import hidden_stack
 from foundation.sb3 import sb3_policy_layout
 from hierarchy.pretrained import resolve_task_policy, task_policies_hint
@@ -28,6 +29,10 @@ from tasks.observables import flat_batch
 
 TASK_POLICY_FORMAT = "mocap_hierarchy.task_policy"
 TASK_POLICY_SCHEMA_VERSION = 1
+
+
+class TaskPolicyFileError(ValueError):
+    """A task policy file is unreadable, of another format or a newer schema, or damaged."""
 
 
 @dataclass(frozen=True)
@@ -58,6 +63,16 @@ class TaskPolicySpec:
     obs_epsilon: float
     decoder: dict[str, Any] | None = None
     provenance: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.observation_sizes or min(self.observation_sizes.values()) < 1:
+            raise ValueError("a task policy needs observations, each of at least one value")
+        if self.hidden_layers and min(self.hidden_layers) < 1:
+            raise ValueError("hidden layer sizes must be at least 1")
+        if not self.action_low < self.action_high:
+            raise ValueError(f"action bounds [{self.action_low}, {self.action_high}] are empty")
+        if not (self.obs_clip > 0 and self.obs_epsilon >= 0):
+            raise ValueError("obs_clip must be positive and obs_epsilon not negative")
 
 
 class TaskPolicy(nn.Module):
@@ -107,26 +122,63 @@ class TaskPolicy(nn.Module):
 def load_task_policy(path: str | os.PathLike) -> TaskPolicy:
     """Reads a task policy file (tensors and JSON only).
 
+    Checked like a decoder file (:func:`hierarchy.decoder.load_decoder`): every field, every tensor's
+    shape against the declared network before it is built, no NaN or infinite value, a variance
+    that is not negative.
+
     Args:
         path: The file, or a shipped task policy's name (``synthetic-v3/velocity_control``,
             :func:`hierarchy.pretrained.shipped_task_policies`); a path that exists wins.
 
     Raises:
         FileNotFoundError: No such file or shipped name (the message lists the shipped names).
-        ValueError: Not a task policy file, or a newer schema.
+        TaskPolicyFileError: Not a task policy file, a newer schema, or damaged content (naming the file
+            and what is wrong).
     """
+    path = resolve_task_policy(path)
     description, tensors = read_described(
-        resolve_task_policy(path),
+        path,
         TASK_POLICY_FORMAT,
         TASK_POLICY_SCHEMA_VERSION,
         "task policy",
+        error=TaskPolicyFileError,
         missing_hint=f" (`mocap-hierarchy transfer train` writes it; {task_policies_hint()})",
+        remedy="; copy it again, or train one with `mocap-hierarchy transfer train`",
+        finite=True,
     )
-    action_size = int(description.pop("action_size"))
-    description["hidden_layers"] = tuple(description["hidden_layers"])
-    spec = TaskPolicySpec(**description)
-    policy = TaskPolicy(spec, tensors["obs_mean"].numpy(), tensors["obs_var"].numpy(), action_size)
+    where = str(path)
+    action_size = description.pop("action_size", None)
+    if not isinstance(action_size, int) or isinstance(action_size, bool) or action_size < 1:
+        raise TaskPolicyFileError(f"{where}: task policy description has action_size {action_size!r}, not a count")
+    spec = dataclass_from_json(TaskPolicySpec, description, f"{where}: task policy description", TaskPolicyFileError)
+    size = sum(spec.observation_sizes.values())
+    for name in ("obs_mean", "obs_var"):
+        tensor = tensors.get(name)
+        if tensor is None or tuple(tensor.shape) != (size,) or not tensor.is_floating_point():
+            found = "missing" if tensor is None else f"{tensor.dtype} of shape {tuple(tensor.shape)}"
+            raise TaskPolicyFileError(
+                f"{where}: tensor {name} is {found}; the observations its description lists need ({size},) values"
+            )
+    if not bool((tensors["obs_var"] >= 0).all()):
+        raise TaskPolicyFileError(f"{where}: tensor obs_var holds negative variances")
+    mean, var = tensors["obs_mean"].numpy(), tensors["obs_var"].numpy()
+    check_layout(
+        lambda: TaskPolicy(spec, mean, var, action_size),
+        tensors,
+        where,
+        "task policy",
+        TaskPolicyFileError,
+        layers=len(spec.hidden_layers),
+    )
+    policy = TaskPolicy(spec, mean, var, action_size)
     policy.load_state_dict(tensors)
+    with torch.no_grad():
+        probe = policy.action_net(policy.policy_net(torch.zeros(1, sum(spec.observation_sizes.values()))))
+    if not bool(torch.isfinite(probe).all()):
+        raise TaskPolicyFileError(
+            f"{where}: the policy computes NaN or infinite actions at the mean observation: its weights are damaged; "
+            "train one with `mocap-hierarchy transfer train`"
+        )
     return policy
 
 

@@ -96,8 +96,15 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run_command(args: argparse.Namespace) -> int:
-    """Runs the parsed command; turns the errors a user can act on into one line and an exit status."""
+    """Runs the parsed command; turns the errors a user can act on into one line and an exit status.
+
+    Exit statuses: 2 for an error in what was asked, 1 for a file system error or a run that
+    diverged, 75 (``EX_TEMPFAIL``) when another run writes the same folder, 128 + the signal
+    number for a stop.
+    """
+    from foundation.divergence import TrainingDiverged
     from foundation.onnx_files import MissingExportPackageError
+    from foundation.run_lock import RunFolderInUseError
     from tasks.tracking.batched.backend import WarpUnavailableError
     from tasks.viz.video import VideoUnavailableError
 
@@ -111,6 +118,12 @@ def run_command(args: argparse.Namespace) -> int:
     except OSError as error:  # disk full, read-only or not permitted: name the file and keep what is finished
         print(f"mocap-hierarchy {args.command}: error: {os_error_message(error)}", file=sys.stderr)
         return 1
+    except RunFolderInUseError as error:  # another run writes the same folder: try again when it is done
+        print(f"mocap-hierarchy {args.command}: error: {error}", file=sys.stderr)
+        return RUN_FOLDER_IN_USE
+    except TrainingDiverged as error:  # NaN or infinite losses or weights; the last good checkpoint is kept
+        print(f"mocap-hierarchy {args.command}: error: {error}", file=sys.stderr)
+        return 1
     except TrainingStopped as stopped:  # Ctrl-C or SIGTERM, checkpoint saved
         print(f"mocap-hierarchy {args.command}: {stopped}", file=sys.stderr)
         return stopped.exit_status
@@ -122,6 +135,10 @@ def run_command(args: argparse.Namespace) -> int:
         )
         return getattr(interrupted, "exit_status", 130)
     return 0
+
+
+RUN_FOLDER_IN_USE = 75
+"""Exit status when another run holds the output folder: ``EX_TEMPFAIL``, a failure that a later try may not meet."""
 
 
 def os_error_message(error: OSError) -> str:

@@ -167,17 +167,25 @@ def record(
     prompt: str | None = None,
     video: str | os.PathLike | None = None,
 ) -> dict[str, Any]:
-    """Records ``episodes`` of ``policy`` on ``task`` into the ``.rrd`` file ``out`` (and an mp4 when asked)."""
+    """Records ``episodes`` of ``policy`` on ``task`` into the ``.rrd`` file ``out`` (and an mp4 when asked).
+
+    Holds the lock of ``out`` meanwhile (:func:`foundation.run_lock.file_lock`).
+
+    Raises:
+        RunFolderInUseError: Another run records into the same file.
+    """
+    from foundation.run_lock import file_lock
     from tasks.viz.recording import record_rollout
 
     if Path(out).suffix != ".rrd":
         raise ValueError(f"the recording file must end in .rrd, got {out}")
-    env, act, new_episode = build_rollout(task, policy, overrides, prompt, seed)
-    if video is not None:
-        from tasks.viz.video import VideoRecorder
+    with file_lock(out):  # one writer per recording
+        env, act, new_episode = build_rollout(task, policy, overrides, prompt, seed)
+        if video is not None:
+            from tasks.viz.video import VideoRecorder
 
-        env = VideoRecorder(env, video)
-    result = record_rollout(env, act, out, episodes=episodes, seed=seed, on_reset=new_episode)
+            env = VideoRecorder(env, video)
+        result = record_rollout(env, act, out, episodes=episodes, seed=seed, on_reset=new_episode)
     if video is not None:
         result["video"] = str(video)
     return result

@@ -13,6 +13,15 @@ PHYSICS_STEPS_PER_CONTROL_STEP = 6
 ACTION_TOLERANCE = 1e-6
 """Actions may exceed [-1, 1] by this much (round-off) before they are refused."""
 
+PHYSICS_STATE = mujoco.mjtState.mjSTATE_INTEGRATION
+"""What :func:`physics_state` reads: everything ``mj_step`` integrates or reads as input.
+
+Time, ``qpos``, ``qvel``, ``act``, the solver's warm start ``qacc_warmstart``, ``ctrl``, applied
+forces, mocap poses, equality activations, user data, plugin state and delay histories. With
+these, one ``mj_forward`` recomputes every derived quantity of ``MjData`` bit for bit (checked
+by ``tests/tasks/test_env_state.py``), so nothing else needs saving.
+"""
+
 
 def forward_without_actuation(model: mujoco.MjModel, data: mujoco.MjData) -> None:
     """``mj_forward`` with actuators off: dm_control's state after a reset."""
@@ -62,6 +71,43 @@ def control_step(model: mujoco.MjModel, data: mujoco.MjData, ctrl: np.ndarray, a
     mujoco.mj_step(model, data, PHYSICS_STEPS_PER_CONTROL_STEP - 1)
     mujoco.mj_forward(model, data)
     return int(data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number) > before
+
+
+def physics_state(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
+    """The simulation's full state (:data:`PHYSICS_STATE`) as one float64 vector."""
+    state = np.empty(mujoco.mj_stateSize(model, PHYSICS_STATE))
+    mujoco.mj_getState(model, data, state, PHYSICS_STATE)
+    return state
+
+
+def restore_physics(model: mujoco.MjModel, data: mujoco.MjData, state: np.ndarray, after_step: bool) -> None:
+    """Puts ``data`` in the state :func:`physics_state` read, derived quantities included.
+
+    ``data`` is cleared (``mj_resetData``: what no forward pass writes, such as subtree
+    velocities, reads as after a reset), the state written, and the forward pass that left
+    the saved ``data`` is run again: ``mj_forward`` after :func:`control_step`, or
+    :func:`forward_without_actuation` after a reset. The next :func:`control_step` (with the
+    same ``acceleration_current``) then computes what it would have without the snapshot.
+
+    Args:
+        model: The walker model.
+        data: The state to overwrite.
+        state: A :func:`physics_state` of this model.
+        after_step: The saved state came from :func:`control_step` (else from a reset).
+
+    Raises:
+        ValueError: ``state`` has the wrong size for this model.
+    """
+    expected = mujoco.mj_stateSize(model, PHYSICS_STATE)
+    state = np.asarray(state, dtype=np.float64)
+    if state.shape != (expected,):
+        raise ValueError(f"a physics state of this model has {expected} numbers, got shape {state.shape}")
+    mujoco.mj_resetData(model, data)
+    mujoco.mj_setState(model, data, state, PHYSICS_STATE)
+    if after_step:
+        mujoco.mj_forward(model, data)
+    else:
+        forward_without_actuation(model, data)
 
 
 def checked_action(action, size: int) -> np.ndarray:

@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 
 from distill.dataset import schema
+from foundation.json_fields import first_line
 from tasks.clips.snippets import parse_snippet_id
 from tasks.tracking.metrics import episode_means
 
@@ -106,16 +107,16 @@ class RolloutDataset:
         for number, path in enumerate(self.files):
             where = str(path)
             try:
-                with h5py.File(path, "r") as f:
-                    layout = schema.validate(f, where)
-                    self._check_matches_first(path, layout)
-                    self.layouts.append(layout)
-                    self.episodes += self._episode_refs(f, number, layout, where, n_start, n_rsi)
+                handle = h5py.File(path, "r")
             except OSError as error:
                 raise schema.DatasetError(
-                    f"{path} is not a readable HDF5 file ({error}); it may be truncated: write it again with "
-                    "`mocap-hierarchy rollout`"
+                    f"{path} is not a readable HDF5 file ({first_line(error)}); it may be truncated: {schema.REWRITE}"
                 ) from None
+            with handle as f, schema.file_errors(where):
+                layout = schema.validate(f, where)
+                self._check_matches_first(path, layout)
+                self.layouts.append(layout)
+                self.episodes += self._episode_refs(f, number, layout, where, n_start, n_rsi)
         first = self.layouts[0]
         self.ref_steps = first.ref_steps
         self.observable_indices = first.observable_indices
@@ -138,9 +139,17 @@ class RolloutDataset:
         indices = list(range(starts)) + list(range(layout.n_start, layout.n_start + randoms))
         refs = []
         for snippet in layout.snippets:
-            start_lengths = schema.dataset_at(f, f"{snippet}/{schema.START_METRICS}/{schema.EPISODE_LENGTHS}", where)
-            random_lengths = schema.dataset_at(f, f"{snippet}/{schema.RSI_METRICS}/{schema.EPISODE_LENGTHS}", where)
-            lengths = np.concatenate([start_lengths[:starts], random_lengths[:randoms]])
+            found = []
+            for group, count in ((schema.START_METRICS, starts), (schema.RSI_METRICS, randoms)):
+                name = f"{snippet}/{group}/{schema.EPISODE_LENGTHS}"
+                values = schema.array_at(f, name, where)
+                if values.ndim != 1 or values.dtype.kind not in "iu" or len(values) < count or np.any(values < 0):
+                    raise schema.DatasetError(
+                        f"{where}: /{name} is {values.dtype} of shape {values.shape}; {count} episode lengths "
+                        f"(non-negative integers) belong there: {schema.REWRITE}"
+                    )
+                found.append(values[:count])
+            lengths = np.concatenate(found)
             for index, length in zip(indices, lengths, strict=True):
                 refs.append(EpisodeRef(number, snippet, index, int(length), index < layout.n_start))
         return refs
@@ -205,9 +214,17 @@ class RolloutDataset:
         return self._handles[number]
 
     def read(self, episode: EpisodeRef, name: str) -> np.ndarray:
-        """A whole per-episode dataset (``observations/proprioceptive``, ``actions``, ...)."""
+        """A whole per-episode dataset (``observations/proprioceptive``, ``actions``, ...).
+
+        Raises:
+            DatasetError: The dataset is missing, unreadable, of another shape than the episode's length
+                says, or holds NaN or infinite values (naming the file and the dataset).
+        """
         path = f"{episode.group}/{name}"
-        return np.asarray(schema.dataset_at(self.file(episode.file), path, str(self.files[episode.file]))[...])
+        where = str(self.files[episode.file])
+        with schema.file_errors(where):
+            width = self.layouts[episode.file].width
+            return schema.episode_array(self.file(episode.file), path, name, episode.length, width, where)
 
     def snippet_returns(self) -> dict[str, float]:
         """Mean normalised return per snippet (start and random-start episodes), for CWR."""
@@ -228,20 +245,40 @@ class RolloutDataset:
         group = schema.RSI_METRICS if init == "random" else schema.START_METRICS
         out = {}
         for number, layout in enumerate(self.layouts):
-            f, where = self.file(number), str(self.files[number])
-            for snippet in layout.snippets:
-                read = lambda name: float(np.mean(schema.dataset_at(f, f"{snippet}/{group}/{name}", where)[...]))  # noqa: B023, E731
-                out[snippet] = {
-                    "normalized_reward": read(schema.NORM_EPISODE_RETURNS),
-                    "normalized_length": read(schema.NORM_EPISODE_LENGTHS),
-                }
-                metrics = schema.group_at(f, f"{snippet}/{group}", where)
-                recorded = {
-                    name: schema.dataset_at(metrics, name, where)[...].tolist()
-                    for name in schema.TRACKING_METRIC_NAMES
-                    if name in metrics
-                }
-                out[snippet].update(episode_means(recorded) if recorded else {})
+            where = str(self.files[number])
+            with schema.file_errors(where):
+                out.update(self._expert_metrics(number, layout, group, where))
+        return out
+
+    def _expert_metrics(
+        self, number: int, layout: schema.FileLayout, group: str, where: str
+    ) -> dict[str, dict[str, float]]:
+        """One file's recorded rewards and lengths (and tracking metrics) per snippet (checked: finite)."""
+        out = {}
+        f = self.file(number)
+        for snippet in layout.snippets:
+            read = lambda name: float(np.mean(schema.array_at(f, f"{snippet}/{group}/{name}", where)))  # noqa: B023, E731
+            out[snippet] = {
+                "normalized_reward": read(schema.NORM_EPISODE_RETURNS),
+                "normalized_length": read(schema.NORM_EPISODE_LENGTHS),
+            }
+            if not all(np.isfinite(value) for value in out[snippet].values()):
+                raise schema.DatasetError(
+                    f"{where}: /{snippet}/{group} records NaN or infinite rewards or lengths; {schema.REWRITE}"
+                )
+            metrics = schema.group_at(f, f"{snippet}/{group}", where)
+            episodes = len(schema.array_at(metrics, schema.EPISODE_LENGTHS, where))
+            recorded = {}
+            for name in schema.TRACKING_METRIC_NAMES:  # NaN where an episode was not measured
+                if name in metrics:
+                    values = schema.array_at(metrics, name, where)
+                    if values.shape != (episodes,) or values.dtype.kind not in "fiu":
+                        raise schema.DatasetError(
+                            f"{where}: /{snippet}/{group}/{name} is {values.dtype} of shape {values.shape}; one "
+                            f"number per episode ({episodes}) belongs there: {schema.REWRITE}"
+                        )
+                    recorded[name] = values.tolist()
+            out[snippet].update(episode_means(recorded) if recorded else {})
         return out
 
     def statistics(self, actions_per_row: bool = False) -> Statistics:
@@ -260,21 +297,8 @@ class RolloutDataset:
         counts: dict[str, float] = {}
         for number, layout in enumerate(self.layouts):
             where = str(self.files[number])
-            stats = schema.group_at(self.file(number), schema.STATS, where)
-            rows = float(schema.dataset_at(stats, "count", where)[()])
-            actions = self._action_count(number, stats)
-            per_row = schema.actions_per_row_statistics(layout.version)
-            action_count = rows if actions_per_row else actions
-            for name, divisor, count in (
-                ("proprio", rows, rows),
-                ("act", rows if per_row else actions, action_count),
-                ("mean_act", rows if per_row else actions, action_count),
-            ):
-                mean = np.asarray(schema.dataset_at(stats, f"{name}_mean", where)[...], dtype=np.float64)
-                var = np.asarray(schema.dataset_at(stats, f"{name}_var", where)[...], dtype=np.float64)
-                sums[name] = sums.get(name, 0.0) + divisor * mean
-                squares[name] = squares.get(name, 0.0) + divisor * (var + mean**2)
-                counts[name] = counts.get(name, 0.0) + count
+            with schema.file_errors(where):
+                self._add_statistics(number, layout, where, actions_per_row, sums, squares, counts)
         pooled = {}
         for name in ("proprio", "act", "mean_act"):
             mean = sums[name] / counts[name]
@@ -282,15 +306,59 @@ class RolloutDataset:
             pooled[f"{name}_var"] = np.clip(squares[name] / counts[name] - mean**2, 0.0, None)
         return Statistics(count=int(counts["proprio"]), **pooled)
 
+    def _add_statistics(
+        self,
+        number: int,
+        layout: schema.FileLayout,
+        where: str,
+        actions_per_row: bool,
+        sums: dict[str, np.ndarray],
+        squares: dict[str, np.ndarray],
+        counts: dict[str, float],
+    ) -> None:
+        """Adds one file's stored statistics, turned back into sums, to the pooled ones (checked first)."""
+        stats = schema.group_at(self.file(number), schema.STATS, where)
+        rows = float(schema.count_at(stats, "count", where))
+        actions = self._action_count(number, stats)
+        if rows < 1 or actions < 1:
+            raise schema.DatasetError(f"{where}: /{schema.STATS} counts {rows:g} rows and {actions:g} actions")
+        per_row = schema.actions_per_row_statistics(layout.version)
+        action_count = rows if actions_per_row else actions
+        for name, divisor, count in (
+            ("proprio", rows, rows),
+            ("act", rows if per_row else actions, action_count),
+            ("mean_act", rows if per_row else actions, action_count),
+        ):
+            mean = schema.array_at(stats, f"{name}_mean", where).astype(np.float64)
+            var = schema.array_at(stats, f"{name}_var", where).astype(np.float64)
+            size = layout.width if name == "proprio" else None
+            if mean.ndim != 1 or mean.shape != var.shape or (size is not None and mean.shape != (size,)):
+                raise schema.DatasetError(
+                    f"{where}: /{schema.STATS}/{name}_mean and _var have shapes {mean.shape} and {var.shape}; "
+                    f"{schema.REWRITE}"
+                )
+            if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)):
+                raise schema.DatasetError(
+                    f"{where}: /{schema.STATS}/{name}_mean or _var holds NaN, infinite or negative values; "
+                    f"{schema.REWRITE}"
+                )
+            if name in sums and sums[name].shape != mean.shape:
+                raise schema.DatasetError(
+                    f"{where}: /{schema.STATS}/{name}_mean has another size than the first file's"
+                )
+            sums[name] = sums.get(name, 0.0) + divisor * mean
+            squares[name] = squares.get(name, 0.0) + divisor * (var + mean**2)
+            counts[name] = counts.get(name, 0.0) + count
+
     def _action_count(self, number: int, stats: h5py.Group) -> float:
         """Actions in one file: ``stats/action_count`` (ours), else the sum of its episode lengths (MoCapAct's)."""
         where = str(self.files[number])
         if schema.ACTION_COUNT in stats:
-            return float(schema.dataset_at(stats, schema.ACTION_COUNT, where)[()])
+            return float(schema.count_at(stats, schema.ACTION_COUNT, where))
         f = self.file(number)
         return float(
             sum(
-                np.sum(schema.dataset_at(f, f"{snippet}/{group}/{schema.EPISODE_LENGTHS}", where)[...])
+                np.sum(schema.array_at(f, f"{snippet}/{group}/{schema.EPISODE_LENGTHS}", where))
                 for snippet in self.layouts[number].snippets
                 for group in (schema.START_METRICS, schema.RSI_METRICS)
             )

@@ -34,12 +34,14 @@ number of actions. The reader knows both (:func:`actions_per_row_statistics`).
 
 from __future__ import annotations
 
+import contextlib
 import re
 from dataclasses import dataclass
 
 import h5py
 import numpy as np
 
+from foundation.hdf5_files import hdf5_errors, read_bounded
 from tasks.tracking.metrics import TRACKING_METRICS
 
 SCHEMA_ATTRIBUTE = "mocap_hierarchy_rollouts"
@@ -89,6 +91,63 @@ class DatasetError(ValueError):
     """A rollout file is missing, corrupt, from another schema, or asked for something it lacks."""
 
 
+REWRITE = "write it again with `mocap-hierarchy rollout`"
+"""How a message about a damaged rollout file ends."""
+
+PER_STEP_DATASETS = (ACTIONS, MEAN_ACTIONS, LOG_PROBS, REWARDS, VALUES, ADVANTAGES)
+"""Per-episode datasets with one row per action (observations have one more)."""
+
+
+def file_errors(where: str) -> contextlib.AbstractContextManager[None]:
+    """Turns what h5py and numpy raise on a damaged file into a :class:`DatasetError` naming it.
+
+    HDF5 reports a truncated file, a damaged object header or a dataset of another type with
+    ``OSError``, ``KeyError``, ``RuntimeError``, ``ValueError`` or ``TypeError`` depending on where
+    the damage lies; the reader's own errors pass through unchanged.
+    """
+    return hdf5_errors(where, DatasetError, REWRITE)
+
+
+def array_at(node: h5py.Group, path: str, where: str) -> np.ndarray:
+    """The whole dataset at ``path`` (refused when missing, or declaring far more bytes than it stores)."""
+    return read_bounded(dataset_at(node, path, where), f"{where}: /{path}", DatasetError)
+
+
+def count_at(node: h5py.Group, path: str, where: str) -> int:
+    """A scalar count stored at ``path``: a non-negative integer, or a :class:`DatasetError`."""
+    value = array_at(node, path, where)
+    if value.shape != () or value.dtype.kind not in "iu" or int(value) < 0:
+        raise DatasetError(f"{where}: /{path} is {value.dtype} of shape {value.shape}, not a count; {REWRITE}")
+    return int(value)
+
+
+def episode_array(node: h5py.Group, path: str, name: str, length: int, width: int, where: str) -> np.ndarray:
+    """An episode's dataset, refused when of another shape than its length says or holding NaN or infinite values.
+
+    Args:
+        node: The file.
+        path: The dataset's path in it.
+        name: Its name (``observations/proprioceptive``, ``actions``, ...); other names are only checked
+            for finite values.
+        length: The episode's number of actions.
+        width: The width of an observation row.
+        where: The file, for the message.
+    """
+    where = f"{where}: /{path}"
+    dataset = dataset_at(node, path, where)
+    shape, rows = dataset.shape, length + 1 if name == OBSERVATIONS else length
+    if dataset.dtype.kind not in "fiub":
+        raise DatasetError(f"{where} holds {dataset.dtype} values, not numbers; {REWRITE}")
+    if name == OBSERVATIONS and shape != (rows, width):
+        raise DatasetError(f"{where} has shape {shape}; an episode of {length} actions needs {(rows, width)}")
+    if name in PER_STEP_DATASETS and (len(shape) not in (1, 2) or shape[0] != rows):
+        raise DatasetError(f"{where} has shape {shape}; an episode of {length} actions needs {rows} rows")
+    values = read_bounded(dataset, where, DatasetError)
+    if values.dtype.kind == "f" and not np.all(np.isfinite(values)):
+        raise DatasetError(f"{where} holds NaN or infinite values; the file is damaged: {REWRITE}")
+    return values
+
+
 @dataclass(frozen=True)
 class FileLayout:
     """What validation found in one file.
@@ -101,6 +160,7 @@ class FileLayout:
         ref_steps: Reference look-ahead.
         observable_indices: Column indices of each observable.
         has_log_probs: Whether episodes store ``log_probs``.
+        width: Columns of an observation row.
     """
 
     version: int
@@ -110,6 +170,7 @@ class FileLayout:
     ref_steps: tuple[int, ...]
     observable_indices: dict[str, np.ndarray]
     has_log_probs: bool
+    width: int = 0
 
 
 def group_at(node: h5py.Group, path: str, where: str) -> h5py.Group:
@@ -141,7 +202,11 @@ def read_observable_indices(f: h5py.File) -> dict[str, np.ndarray]:
 
     def visit(name: str, item) -> None:
         if isinstance(item, h5py.Dataset):
-            out[name] = np.asarray(item[...], dtype=np.int64)
+            where = f"{f.filename}: /{OBSERVABLE_INDICES}/{name}"
+            indices = read_bounded(item, where, DatasetError)
+            if indices.dtype.kind not in "iu":
+                raise DatasetError(f"{where} holds {indices.dtype} values, not column indices; {REWRITE}")
+            out[name] = indices.astype(np.int64)
 
     group_at(f, OBSERVABLE_INDICES, str(f.filename)).visititems(visit)
     return out
@@ -153,7 +218,15 @@ def validate(f: h5py.File, where: str) -> FileLayout:
     Raises:
         DatasetError: naming the file, the group and what to do.
     """
-    version = int(f.attrs.get(SCHEMA_ATTRIBUTE, 0))
+    with file_errors(where):
+        return _validate(f, where)
+
+
+def _validate(f: h5py.File, where: str) -> FileLayout:
+    version = np.asarray(f.attrs.get(SCHEMA_ATTRIBUTE, 0))
+    if version.shape != () or version.dtype.kind not in "iu":
+        raise DatasetError(f"{where}: the {SCHEMA_ATTRIBUTE} attribute is {version.dtype}, not a version number")
+    version = int(version)
     if version > SCHEMA_VERSION:
         raise DatasetError(
             f"{where} uses rollout schema version {version}; this library reads up to {SCHEMA_VERSION}: "
@@ -168,7 +241,7 @@ def validate(f: h5py.File, where: str) -> FileLayout:
     snippets = tuple(sorted(str(k) for k in f if SNIPPET_GROUP.match(str(k))))
     if not snippets:
         raise DatasetError(f"{where} holds no snippet group (CLIP-START-END)")
-    n_start, n_rsi = int(dataset_at(f, N_START, where)[()]), int(dataset_at(f, N_RSI, where)[()])
+    n_start, n_rsi = count_at(f, N_START, where), count_at(f, N_RSI, where)
     log_probs = True
     for snippet in snippets:
         group = group_at(f, snippet, where)
@@ -181,16 +254,25 @@ def validate(f: h5py.File, where: str) -> FileLayout:
                 raise DatasetError(f"{where}: /{snippet}/0 lacks {name}")
         log_probs = log_probs and LOG_PROBS in first
     indices = read_observable_indices(f)
-    width = int(dataset_at(f, f"{snippets[0]}/0/{OBSERVATIONS}", where).shape[1])
+    shape = dataset_at(f, f"{snippets[0]}/0/{OBSERVATIONS}", where).shape
+    if len(shape) != 2:
+        raise DatasetError(f"{where}: /{snippets[0]}/0/{OBSERVATIONS} has shape {shape}, not (steps, columns)")
+    width = int(shape[1])
+    if not indices or any(v.ndim != 1 or not v.size for v in indices.values()):
+        raise DatasetError(f"{where}: /{OBSERVABLE_INDICES} lists no observable, or one without columns; {REWRITE}")
     largest = max(int(v.max()) for v in indices.values())
-    if largest >= width:
+    if largest >= width or min(int(v.min()) for v in indices.values()) < 0:
         raise DatasetError(f"{where}: observable_indices reach column {largest} but observations have {width}")
+    ref_steps = array_at(f, REF_STEPS, where)
+    if ref_steps.ndim != 1 or ref_steps.dtype.kind not in "iu":
+        raise DatasetError(f"{where}: /{REF_STEPS} is {ref_steps.dtype} of shape {ref_steps.shape}, not steps")
     return FileLayout(
         version=version,
         snippets=snippets,
         n_start=n_start,
         n_rsi=n_rsi,
-        ref_steps=tuple(int(s) for s in dataset_at(f, REF_STEPS, where)[...]),
+        ref_steps=tuple(int(s) for s in ref_steps),
         observable_indices=indices,
         has_log_probs=log_probs,
+        width=width,
     )

@@ -38,6 +38,7 @@ from distill.experts.loading import load_expert
 from foundation.atomic import atomic_path
 from foundation.lockstep import Lockstep
 from foundation.provenance import library_version
+from foundation.run_lock import run_lock
 from tasks.clips.snippets import parse_snippet_id
 from tasks.observables import OBSERVABLE_SETS, observation_sizes
 from tasks.tracking.env import ClipTrackingEnv
@@ -299,12 +300,17 @@ def rollout_experts(
 ) -> list[Path]:
     """Rolls out every expert under ``experts_dir`` (one folder or several), one file per clip, skipping done ones.
 
-    Then writes ``dataset_metrics.npz`` over every file in ``out`` (for MoCapAct's reader).
+    Then writes ``dataset_metrics.npz`` over every file in ``out`` (for MoCapAct's reader). Holds
+    ``out``'s run lock meanwhile (:func:`foundation.run_lock.run_lock`).
+
+    Raises:
+        RunFolderInUseError: Another run writes ``out``.
     """
     config = config or RolloutConfig()
-    files = [
-        rollout_clip(clip, dict(experts), out, config, clips, progress=True)
-        for clip, experts in experts_by_clip(experts_dir).items()
-    ]
-    write_dataset_metrics(out)
+    with run_lock(out):
+        files = [
+            rollout_clip(clip, dict(experts), out, config, clips, progress=True)
+            for clip, experts in experts_by_clip(experts_dir).items()
+        ]
+        write_dataset_metrics(out)
     return files

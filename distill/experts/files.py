@@ -29,7 +29,6 @@ elsewhere (MoCapAct's release) have no sidecar and can be converted with
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -38,6 +37,7 @@ from pathlib import Path
 from distill.experts.config import EVALUATIONS  # defined there (light), used and re-exported here
 from distill.experts.shipped import names_hint, resolve_experts
 from foundation.atomic import write_json
+from foundation.json_fields import json_type, parse_json, require_mapping
 from tasks.clips.snippets import SnippetId, parse_snippet_id
 
 EXPERT_FORMAT = "mocap_hierarchy.expert"
@@ -204,18 +204,39 @@ def write_clip_info(root: Path, snippet: SnippetId, clip_length: int) -> None:
     write_json(ExpertDir(root).clip_info, {"clip_id": snippet.clip_id, "start_step": snippet.start, "end_step": end})
 
 
+CLIP_INFO_EXAMPLE = '{"clip_id": "CMU_016_22", "start_step": 0, "end_step": 82}'
+"""What ``clip_info.json`` holds (the paper's A.1), for messages about a damaged one."""
+
+
 def read_clip_info(root: Path) -> dict:
-    """Reads and checks ``clip_info.json``."""
+    """Reads and checks ``clip_info.json``: a clip id, and start and end steps that make a snippet.
+
+    Raises:
+        ExpertFilesError: Missing, unreadable, not a JSON mapping, or its fields are missing or of another
+            type (naming the file and the field).
+    """
     path = ExpertDir(Path(root)).clip_info
     try:
-        info = json.loads(path.read_text())
+        text = path.read_text()
     except FileNotFoundError:
         raise ExpertFilesError(f"{path} is missing (the paper's A.1 layout)") from None
-    except json.JSONDecodeError as error:
-        raise ExpertFilesError(f"{path} is not valid JSON: {error}") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise ExpertFilesError(f"{path} cannot be read ({error}); it should hold {CLIP_INFO_EXAMPLE}") from None
+    info = require_mapping(parse_json(text, str(path), ExpertFilesError), str(path), ExpertFilesError)
     missing = [k for k in ("clip_id", "start_step", "end_step") if k not in info]
     if missing:
-        raise ExpertFilesError(f"{path} lacks {missing}")
+        raise ExpertFilesError(f"{path} lacks {missing}; it should hold {CLIP_INFO_EXAMPLE}")
+    steps = [info[k] for k in ("start_step", "end_step")]
+    if not isinstance(info["clip_id"], str) or not all(isinstance(v, int) and not isinstance(v, bool) for v in steps):
+        raise ExpertFilesError(
+            f"{path}: clip_id must be a string and start_step and end_step integers, not "
+            f"{json_type(info['clip_id'])}, {json_type(steps[0])} and {json_type(steps[1])}; it should hold "
+            f"{CLIP_INFO_EXAMPLE}"
+        )
+    try:
+        parse_snippet_id(f"{info['clip_id']}-{steps[0]}-{steps[1]}")
+    except ValueError as error:
+        raise ExpertFilesError(f"{path} names no snippet ({error}); it should hold {CLIP_INFO_EXAMPLE}") from None
     return info
 
 

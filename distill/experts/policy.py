@@ -10,11 +10,11 @@ saved as ``expert.safetensors`` with its description in the header (see :mod:`di
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import torch
@@ -22,7 +22,8 @@ from safetensors.torch import load_file
 from torch import nn
 
 from distill.experts.files import EXPERT_FORMAT, EXPERT_FORMAT_VERSION, ExpertDir, ExpertFilesError
-from foundation.described_file import read_described, write_described
+from foundation.described_file import check_layout, read_described, require_finite, write_described
+from foundation.json_fields import dataclass_from_json, first_line, parse_json, require_mapping
 from foundation.networks import hidden_stack
 from foundation.sb3 import sb3_policy_layout
 
@@ -61,15 +62,24 @@ class ExpertSpec:
     gae_lambda: float
     provenance: dict = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        if not self.observation_sizes or min(self.observation_sizes.values()) < 1:
+            raise ValueError("an expert needs observations, each of at least one value")
+        if (self.hidden_layers and min(self.hidden_layers) < 1) or self.action_size < 1:
+            raise ValueError("hidden layer sizes and action_size must be at least 1")
+        if not (self.action_std > 0 and self.obs_clip > 0):
+            raise ValueError("action_std and obs_clip must be positive")
+        if min(self.obs_epsilon, self.reward_epsilon, self.return_variance) < 0:
+            raise ValueError("obs_epsilon, reward_epsilon and return_variance must not be negative")
+
     @classmethod
-    def from_json(cls, fields: dict, where: str) -> ExpertSpec:
-        """Builds the spec from a file's description (format and version already checked), errors naming the file."""
-        fields = dict(fields)
-        fields["hidden_layers"] = tuple(fields["hidden_layers"])
-        try:
-            return cls(**fields)
-        except TypeError as error:
-            raise ExpertFilesError(f"{where}: {error}") from None
+    def from_json(cls, fields: Any, where: str) -> ExpertSpec:
+        """Builds the spec from a file's description (format and version already checked).
+
+        Raises:
+            ExpertFilesError: Naming the file and the field that is missing, unknown or of another type.
+        """
+        return dataclass_from_json(cls, fields, f"{where}: expert description", ExpertFilesError)
 
 
 @dataclass
@@ -206,8 +216,11 @@ class ExpertPolicy(nn.Module):
         """Reads the sidecar (no code execution); format 1 (``expert.json`` beside the weights) too."""
         if not expert.sidecar.is_file():
             raise ExpertFilesError(
-                f"expert {expert.root.name} has no {expert.sidecar.name}: it was not trained by mocap-hierarchy. "
-                "Convert it with `load_expert(..., trust_pickle=True)` (or `--trust-pickle`) if you trust its source"
+                f"expert {expert.root} has no {expert.evaluation}/model/{expert.sidecar.name}: it was not trained by "
+                f"mocap-hierarchy (MoCapAct's `train.py` writes only stable-baselines3 pickles). If you trust its "
+                f"source, convert it once with `mocap-hierarchy expert convert {expert.root}` (in Python: "
+                "`load_expert(..., trust_pickle=True)`; on `expert eval` and `rollout`: `--trust-pickle`); "
+                "nothing from the pickles runs"
             )
         if not expert.legacy_description.is_file():
             return cls.from_file(expert.sidecar)
@@ -222,32 +235,74 @@ class ExpertPolicy(nn.Module):
             ExpertFilesError: No such file, or not an expert file.
         """
         description, tensors = read_described(
-            path, EXPERT_FORMAT, EXPERT_FORMAT_VERSION, "expert", error=ExpertFilesError, missing_error=ExpertFilesError
+            path,
+            EXPERT_FORMAT,
+            EXPERT_FORMAT_VERSION,
+            "expert",
+            error=ExpertFilesError,
+            missing_error=ExpertFilesError,
+            remedy=EXPERT_REMEDY,
         )
         return cls._from_described(description, tensors, str(path))
 
     @classmethod
-    def _from_described(cls, description: dict, tensors: dict[str, torch.Tensor], where: str) -> ExpertPolicy:
+    def _from_described(cls, description: Any, tensors: dict[str, torch.Tensor], where: str) -> ExpertPolicy:
+        """The policy a file's description and tensors make, once both are checked (no NaN, shapes as declared)."""
+        require_finite(tensors, where, "expert", ExpertFilesError)
         spec = ExpertSpec.from_json(description, where)
         keys = sorted(spec.observation_sizes)
-        policy = cls(
-            spec,
-            {k: tensors[f"obs_mean.{k}"].numpy() for k in keys},
-            {k: tensors[f"obs_var.{k}"].numpy() for k in keys},
+        statistics: dict[str, dict[str, np.ndarray]] = {"obs_mean": {}, "obs_var": {}}
+        for kind, found in statistics.items():
+            for key in keys:
+                tensor = tensors.get(f"{kind}.{key}")
+                size = spec.observation_sizes[key]
+                if tensor is None or tuple(tensor.shape) != (size,) or not tensor.is_floating_point():
+                    what = "missing" if tensor is None else f"{tensor.dtype} of shape {tuple(tensor.shape)}"
+                    raise ExpertFilesError(
+                        f"{where}: tensor {kind}.{key} is {what}; the description needs ({size},) values{EXPERT_REMEDY}"
+                    )
+                found[key] = tensor.numpy()
+        if any(bool((value < 0).any()) for value in statistics["obs_var"].values()):
+            raise ExpertFilesError(f"{where}: an obs_var tensor holds negative variances{EXPERT_REMEDY}")
+        check_layout(
+            lambda: cls(spec, statistics["obs_mean"], statistics["obs_var"]),
+            tensors,
+            where,
+            "expert",
+            ExpertFilesError,
+            prefix="net.",
+            layers=len(spec.hidden_layers),
         )
+        policy = cls(spec, statistics["obs_mean"], statistics["obs_var"])
         weights = {k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")}
         policy.load_state_dict(weights)  # float16 weights widen to float32 here
+        output = policy.act({k: v[None] for k, v in statistics["obs_mean"].items()})
+        if not all(np.all(np.isfinite(v)) for v in (output.mean_actions, output.values)):
+            raise ExpertFilesError(
+                f"{where}: the expert computes NaN or infinite actions or values at its mean observation: its weights "
+                f"are damaged{EXPERT_REMEDY}"
+            )
         return policy
+
+
+EXPERT_REMEDY = (
+    "; copy the expert again, or convert its stable-baselines3 files again "
+    "(`mocap-hierarchy expert convert --force EXPERT_DIR`)"
+)
+"""How a message about a damaged expert file ends: where an intact one comes from."""
 
 
 def _read_format_1(expert: ExpertDir) -> tuple[dict, dict[str, torch.Tensor]]:
     """Format 1: the description in ``expert.json`` (with ``format``/``version``), plain safetensors weights."""
     where = expert.legacy_description
     try:
-        data = json.loads(where.read_text())
+        text = where.read_text()
         tensors = load_file(str(expert.sidecar))
-    except (json.JSONDecodeError, OSError, ValueError) as error:
-        raise ExpertFilesError(f"expert {expert.root.name}: unreadable sidecar ({error})") from None
+    except Exception as error:  # OSError, UnicodeDecodeError, safetensors' own errors for a damaged file
+        raise ExpertFilesError(
+            f"expert {expert.root}: unreadable sidecar ({first_line(error)}){EXPERT_REMEDY}"
+        ) from None
+    data = require_mapping(parse_json(text, str(where), ExpertFilesError), str(where), ExpertFilesError)
     if data.pop("format", None) != EXPERT_FORMAT:
         raise ExpertFilesError(f"{where} is not a mocap-hierarchy expert description")
     if data.pop("version", 0) != 1:

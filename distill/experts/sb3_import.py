@@ -40,8 +40,10 @@ import torch
 
 from distill.experts.files import ExpertDir, ExpertFilesError
 from distill.experts.policy import ExpertPolicy, ExpertSpec
+from foundation.described_file import require_finite
 from foundation.fingerprints import file_sha256
 from foundation.inert_pickle import InertPickleError, load_inert, stub_state
+from foundation.json_fields import first_line, parse_json, require_mapping
 from foundation.provenance import provenance
 
 MOCAPACT_OBS_EPSILON = 1e-8
@@ -51,23 +53,51 @@ POLICY_PREFIX = "mlp_extractor.policy_net."
 VALUE_PREFIX = "mlp_extractor.value_net."
 
 
+MAX_ZIP_MEMBER = 1 << 30
+"""The largest member of a stable-baselines3 zip read (1 GiB; an expert's weights take a few MB): a damaged or
+hostile zip may declare any size, and a member is read into memory whole."""
+
+
 def read_sb3_zip(path: Path) -> tuple[dict[str, Any], dict[str, torch.Tensor]]:
     """The ``data`` JSON and the ``policy.pth`` weights of a stable-baselines3 zip (no code runs).
 
     Raises:
-        ExpertFilesError: Not a zip, no ``data``/``policy.pth``, or unreadable weights.
+        ExpertFilesError: Not a zip, no ``data``/``policy.pth``, a member larger than :data:`MAX_ZIP_MEMBER`,
+            ``data`` not a JSON mapping, or weights that are not a state_dict of finite floating-point tensors.
     """
     try:
         with zipfile.ZipFile(path) as archive:
-            data = json.loads(archive.read("data").decode())
-            weights = torch.load(io.BytesIO(archive.read("policy.pth")), map_location="cpu", weights_only=True)
-    except (zipfile.BadZipFile, KeyError, json.JSONDecodeError, UnicodeDecodeError) as error:
-        raise ExpertFilesError(f"{path} is not a stable-baselines3 model zip ({error})") from None
+            sizes = {name: archive.getinfo(name).file_size for name in ("data", "policy.pth")}
+            large = [f"{name} ({size} bytes)" for name, size in sizes.items() if size > MAX_ZIP_MEMBER]
+            if large:
+                raise ExpertFilesError(
+                    f"{path} declares members larger than {MAX_ZIP_MEMBER} bytes ({', '.join(large)}); not an "
+                    f"expert's files{SB3_REMEDY}"
+                )
+            text, pth = archive.read("data"), archive.read("policy.pth")
+    except ExpertFilesError:
+        raise
+    except Exception as error:  # zipfile raises BadZipFile, KeyError, zlib.error, EOFError, NotImplementedError...
+        raise ExpertFilesError(
+            f"{path} is not a readable stable-baselines3 model zip ({type(error).__name__}: {first_line(error)})"
+            f"{SB3_REMEDY}"
+        ) from None
+    data = require_mapping(parse_json(text, f"{path}: data", ExpertFilesError), f"{path}: data", ExpertFilesError)
+    try:
+        weights = torch.load(io.BytesIO(pth), map_location="cpu", weights_only=True)
     except Exception as error:  # torch's weights-only reader raises UnpicklingError/RuntimeError on foreign content
-        raise ExpertFilesError(f"{path}: policy.pth cannot be read as plain weights ({error})") from None
+        raise ExpertFilesError(f"{path}: policy.pth cannot be read as plain weights ({first_line(error)})") from None
     if not isinstance(weights, dict):
         raise ExpertFilesError(f"{path}: policy.pth holds a {type(weights).__name__}, not a state_dict")
+    strange = [str(k) for k, v in weights.items() if not (isinstance(k, str) and isinstance(v, torch.Tensor))]
+    if strange:
+        raise ExpertFilesError(f"{path}: policy.pth holds entries that are not named tensors ({strange[:3]})")
+    require_finite(weights, f"{path}: policy.pth", "expert", ExpertFilesError)
     return data, weights
+
+
+SB3_REMEDY = "; copy the expert's files again from their source"
+"""How a message about damaged stable-baselines3 files ends."""
 
 
 def read_normaliser(path: Path) -> dict[str, Any]:
@@ -86,19 +116,36 @@ def read_normaliser(path: Path) -> dict[str, Any]:
             f"{path} is not a stable-baselines3 VecNormalize with per-key observation statistics (obs_rms)"
         )
     means, variances = {}, {}
-    for key, rms in observations.items():
-        fields = stub_state(rms) or {}
-        if "mean" not in fields or "var" not in fields:
-            raise ExpertFilesError(f"{path}: obs_rms[{key!r}] has no mean and var")
-        means[key] = np.asarray(fields["mean"], dtype=np.float64).reshape(-1)
-        variances[key] = np.asarray(fields["var"], dtype=np.float64).reshape(-1)
-    returns = stub_state(state.get("ret_rms")) or {}
+    try:
+        for key, rms in observations.items():
+            fields = stub_state(rms) or {}
+            if "mean" not in fields or "var" not in fields:
+                raise ExpertFilesError(f"{path}: obs_rms[{key!r}] has no mean and var")
+            means[str(key)] = np.asarray(fields["mean"], dtype=np.float64).reshape(-1)
+            variances[str(key)] = np.asarray(fields["var"], dtype=np.float64).reshape(-1)
+        returns = stub_state(state.get("ret_rms")) or {}
+        return_variance = float(np.asarray(returns.get("var", 1.0), dtype=np.float64).reshape(-1)[0])
+        clip_obs, epsilon = float(state.get("clip_obs", 10.0)), float(state.get("epsilon", 1e-8))
+    except (TypeError, ValueError, IndexError) as error:  # a stub or a string where numbers belong
+        raise ExpertFilesError(f"{path}: the normaliser's statistics are not numbers ({first_line(error)})") from None
+    for key in means:
+        if means[key].shape != variances[key].shape or not means[key].size:
+            raise ExpertFilesError(
+                f"{path}: obs_rms[{key!r}] has {means[key].size} means but {variances[key].size} variances"
+            )
+        values = np.concatenate([means[key], variances[key]])
+        if not np.all(np.isfinite(values)) or np.any(variances[key] < 0):
+            raise ExpertFilesError(f"{path}: obs_rms[{key!r}] holds NaN, infinite or negative statistics")
+    if not (np.isfinite(return_variance) and return_variance >= 0 and clip_obs > 0 and epsilon >= 0):
+        raise ExpertFilesError(
+            f"{path}: ret_rms.var {return_variance}, clip_obs {clip_obs} or epsilon {epsilon} is out of range"
+        )
     return {
         "mean": means,
         "var": variances,
-        "return_variance": float(np.asarray(returns.get("var", 1.0)).reshape(-1)[0]),
-        "clip_obs": float(state.get("clip_obs", 10.0)),
-        "epsilon": float(state.get("epsilon", 1e-8)),
+        "return_variance": return_variance,
+        "clip_obs": clip_obs,
+        "epsilon": epsilon,
     }
 
 
@@ -118,10 +165,19 @@ def _extractor_keys(data: dict[str, Any], path: Path) -> list[str] | None:
 
 def _layers(weights: dict[str, torch.Tensor], prefix: str, path: Path) -> list[tuple[torch.Tensor, torch.Tensor]]:
     """``(weight, bias)`` of each Linear of one MLP, in order."""
-    indices = sorted({int(k[len(prefix) :].split(".")[0]) for k in weights if k.startswith(prefix)})
+    names = [k[len(prefix) :].split(".")[0] for k in weights if k.startswith(prefix)]
+    if not all(name.isdigit() for name in names):
+        raise ExpertFilesError(f"{path}: policy.pth has {prefix}* entries that are not numbered layers")
+    indices = sorted({int(name) for name in names})
     if not indices:
         raise ExpertFilesError(f"{path}: policy.pth has no {prefix}* layers (not an actor-critic MLP policy)")
-    return [(weights[f"{prefix}{i}.weight"].float(), weights[f"{prefix}{i}.bias"].float()) for i in indices]
+    layers = []
+    for i in indices:
+        weight, bias = weights.get(f"{prefix}{i}.weight"), weights.get(f"{prefix}{i}.bias")
+        if weight is None or bias is None or weight.ndim != 2 or bias.shape != weight.shape[:1]:
+            raise ExpertFilesError(f"{path}: policy.pth layer {prefix}{i} is not a Linear layer (weight and bias)")
+        layers.append((weight.float(), bias.float()))
+    return layers
 
 
 def _check_activation(data: dict[str, Any], path: Path) -> None:
@@ -173,32 +229,15 @@ def convert_sb3_expert(expert: ExpertDir) -> ExpertPolicy:
     if tuple(int(w.shape[0]) for w, _ in value_layers) != hidden:
         raise ExpertFilesError(f"{expert.best_model}: policy and value networks differ in shape (not supported)")
     log_std = weights.get("log_std")
-    if log_std is None or "action_net.weight" not in weights:
+    heads = ("action_net.weight", "action_net.bias", "value_net.weight", "value_net.bias")
+    if log_std is None or not all(name in weights for name in heads):
         raise ExpertFilesError(f"{expert.best_model}: policy.pth lacks action_net or log_std (not a Gaussian policy)")
-    stds = np.exp(log_std.double().numpy())
+    stds = np.exp(log_std.double().numpy()).reshape(-1)
     mocapact = extractor_keys is not None
-    spec = ExpertSpec(
-        snippet=str(expert.snippet()),
-        observation_sizes=dict(sorted(sizes.items())),
-        hidden_layers=hidden,
-        action_size=int(weights["action_net.weight"].shape[0]),
-        action_std=float(stds.mean()),
-        residual_actions=_residual(expert),
-        obs_clip=math.inf if mocapact else normaliser["clip_obs"],
-        obs_epsilon=MOCAPACT_OBS_EPSILON if mocapact else normaliser["epsilon"],
-        return_variance=normaliser["return_variance"],
-        reward_epsilon=normaliser["epsilon"],
-        gamma=float(data.get("gamma", 0.95)),
-        gae_lambda=float(data.get("gae_lambda", 0.95)),
-        provenance=provenance(
-            source="MoCapAct clip expert" if mocapact else "stable-baselines3 expert",
-            converted_from=f"{expert.evaluation}/model/best_model.zip + vecnormalize.pkl (no code executed)",
-            best_model_sha256=file_sha256(expert.best_model),
-            file_observation_order=list(keys),
-            normalisation="MoCapAct load_policy: unclipped" if mocapact else "VecNormalize: clipped",
-            action_std_spread=float(stds.max() - stds.min()),
-        ),
-    )
+    try:
+        spec = _spec(expert, data, normaliser, keys, sizes, hidden, weights, stds, mocapact)
+    except (TypeError, ValueError) as error:  # a hyperparameter of another type, or a value the spec refuses
+        raise ExpertFilesError(f"{expert.best_model}: {first_line(error)}{SB3_REMEDY}") from None
     policy = ExpertPolicy(spec, {k: normaliser["mean"][k] for k in keys}, {k: normaliser["var"][k] for k in keys})
     state: dict[str, torch.Tensor] = {}
     for name, layers in (("policy_net", policy_layers), ("value_net", value_layers)):
@@ -211,13 +250,62 @@ def convert_sb3_expert(expert: ExpertDir) -> ExpertPolicy:
         weights["action_net.bias"].float(),
     )
     state["value.weight"], state["value.bias"] = weights["value_net.weight"].float(), weights["value_net.bias"].float()
-    policy.load_state_dict(state)
+    try:
+        policy.load_state_dict(state)
+    except RuntimeError as error:  # layers whose shapes do not chain
+        raise ExpertFilesError(
+            f"{expert.best_model}: policy.pth's layers do not fit together ({first_line(error)}){SB3_REMEDY}"
+        ) from None
     return policy
 
 
+def _spec(
+    expert: ExpertDir,
+    data: dict[str, Any],
+    normaliser: dict[str, Any],
+    keys: list[str],
+    sizes: dict[str, int],
+    hidden: tuple[int, ...],
+    weights: dict[str, torch.Tensor],
+    stds: np.ndarray,
+    mocapact: bool,
+) -> ExpertSpec:
+    """The converted expert's description (raises ``TypeError``/``ValueError`` for values of another type)."""
+    return ExpertSpec(
+        snippet=str(expert.snippet()),
+        observation_sizes=dict(sorted(sizes.items())),
+        hidden_layers=hidden,
+        action_size=int(weights["action_net.weight"].shape[0]),
+        action_std=float(stds.mean()),
+        residual_actions=_residual(expert),
+        obs_clip=math.inf if mocapact else normaliser["clip_obs"],
+        obs_epsilon=MOCAPACT_OBS_EPSILON if mocapact else normaliser["epsilon"],
+        return_variance=normaliser["return_variance"],
+        reward_epsilon=normaliser["epsilon"],
+        gamma=_number(data.get("gamma", 0.95)),
+        gae_lambda=_number(data.get("gae_lambda", 0.95)),
+        provenance=provenance(
+            source="MoCapAct clip expert" if mocapact else "stable-baselines3 expert",
+            converted_from=f"{expert.evaluation}/model/best_model.zip + vecnormalize.pkl (no code executed)",
+            best_model_sha256=file_sha256(expert.best_model),
+            file_observation_order=list(keys),
+            normalisation="MoCapAct load_policy: unclipped" if mocapact else "VecNormalize: clipped",
+            action_std_spread=float(stds.max() - stds.min()),
+        ),
+    )
+
+
+def _number(value: Any) -> float:
+    """A hyperparameter as a float (``TypeError``/``ValueError`` for anything but a number)."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError(f"a hyperparameter is {type(value).__name__} where a number belongs")
+    return float(value)
+
+
 def _residual(expert: ExpertDir) -> bool:
-    """Our experts record residual actions in ``config.json``; MoCapAct's are absolute."""
+    """Our experts record residual actions in ``config.json``; MoCapAct's are absolute (and have none)."""
     try:
-        return bool(json.loads(expert.config.read_text()).get("residual_actions", False))
-    except (OSError, json.JSONDecodeError):
+        config = json.loads(expert.config.read_text())
+    except (OSError, ValueError, RecursionError):  # no config.json (MoCapAct's), or an unreadable one
         return False
+    return isinstance(config, dict) and config.get("residual_actions") is True

@@ -47,8 +47,18 @@ from foundation.config_files import config_to_dict
 from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
 from foundation.provenance import provenance
 from foundation.resume import SettingsMismatchError, check_same_settings
-from foundation.sb3 import SAVE_EXCLUDE, StepSize, build_ppo, load_ppo, resize_rollouts, resumable_logger, save_sb3
-from foundation.sb3_callbacks import AdaptiveStepSize
+from foundation.run_lock import run_lock
+from foundation.sb3 import (
+    SAVE_EXCLUDE,
+    StepSize,
+    build_ppo,
+    load_ppo,
+    resize_rollouts,
+    resumable_logger,
+    save_sb3,
+    saved_steps,
+)
+from foundation.sb3_callbacks import AdaptiveStepSize, StopOnDivergence
 from tasks.clips.format import list_clips
 from tasks.clips.snippets import SnippetId, parse_snippet_id
 from tasks.clips.sources import resolve_clip_file
@@ -198,6 +208,13 @@ class ExpertRun:
             "tracking": evaluation.tracking,
         }
 
+    def kept_checkpoint(self) -> str:
+        """What a run that diverged keeps: its last checkpoint, written from finite weights before the bad update."""
+        steps = saved_steps(self.expert.checkpoint.model)
+        if steps is None:
+            return f"no checkpoint was written yet (the kept expert, if any, is in {self.expert.root})"
+        return f"the last good checkpoint (step {steps}) is kept in {self.expert.checkpoint_dir}"
+
     def save_checkpoint(self, model: PPO) -> None:
         """Writes the resumable state (model, normaliser, run state) to the checkpoint, the state file last."""
         files = self.expert.checkpoint
@@ -218,8 +235,9 @@ def train_expert(
 ) -> TrainingResult:
     """Trains (or resumes, or skips) the expert of one snippet.
 
-    Reads top to bottom: settings, the finished-expert shortcut, the directory,
-    the environments, a new, resumed or started-from PPO, the training loop, the final files.
+    Reads top to bottom: settings, the finished-expert shortcut, the directory (held by this
+    run alone, see :func:`foundation.run_lock.run_lock`), the environments, a new, resumed or
+    started-from PPO, the training loop, the final files.
 
     Args:
         snippet: Snippet id (``CLIP-START-END``) or a whole clip id.
@@ -234,6 +252,9 @@ def train_expert(
     Raises:
         ConfigMismatchError: A checkpoint from different settings exists.
         TrainingStopped: Ctrl-C or ``SIGTERM`` arrived; a checkpoint of the step reached is saved.
+        TrainingDiverged: An update made the losses, weights or normaliser NaN or infinite; the last
+            checkpoint written before it is kept.
+        RunFolderInUseError: Another run is training this expert (in its ``<snippet>/`` directory).
         KeyError: The clip file has no such clip (checked before any folder is created).
         ValueError: The snippet's steps are outside the clip, or the settings cannot work.
     """
@@ -241,13 +262,33 @@ def train_expert(
     config = config or ExpertConfig()
     config.validate()
     snippet_id = parse_snippet_id(snippet)
-    name = str(snippet_id)
     expert = expert_dir_for(out, snippet)
     if expert.is_done():
-        summary = json.loads(expert.done.read_text())
-        return TrainingResult(name, str(expert.root), summary["steps"], summary["best"], "already_done", 0.0)
+        return _already_done(expert, str(snippet_id))
+    clip_file, frames = _check_snippet(snippet_id, clips)  # nothing is created for a clip or steps not there
+    with run_lock(expert.root):  # one writer per expert directory
+        if expert.is_done():  # finished by another run between the check and the lock
+            return _already_done(expert, str(snippet_id))
+        return _train(expert, snippet_id, clip_file, frames, config, progress, started)
 
-    clip_file = _prepare_directory(expert, snippet_id, config, clips)
+
+def _already_done(expert: ExpertDir, name: str) -> TrainingResult:
+    summary = json.loads(expert.done.read_text())
+    return TrainingResult(name, str(expert.root), summary["steps"], summary["best"], "already_done", 0.0)
+
+
+def _train(
+    expert: ExpertDir,
+    snippet_id: SnippetId,
+    clip_file: str,
+    frames: int,
+    config: ExpertConfig,
+    progress: bool,
+    started: float,
+) -> TrainingResult:
+    """:func:`train_expert` once the expert directory is this run's: the environments, the PPO, the loop, the files."""
+    name = str(snippet_id)
+    write_clip_info(expert.root, snippet_id, frames)
     saved_state = _check_resume(expert, config)
     write_json(expert.config, expert_settings_json(config))
     if config.torch_threads > 0:
@@ -289,13 +330,16 @@ def _learn(model: PPO, run: ExpertRun, stop: StopFlag) -> str:
         callbacks.insert(0, FixedNoise(config.action_std))
     if config.steps_per_update.changes:
         callbacks.append(RolloutSizeLog())
+    divergence = StopOnDivergence(f"expert {run.snippet}", run.kept_checkpoint)
+    callbacks.insert(0, divergence)  # first: no callback resets a weight before it is checked
     envs = config.resolved_envs()
     try:
-        while model.num_timesteps < config.total_steps and not (evaluation.stopped_early or stop.requested):
-            steps = int(model.num_timesteps)
-            resize_rollouts(model, config.steps_per_update_at(steps) // envs)
-            end = min([s for s in config.steps_per_update.change_steps() if s > steps] + [config.total_steps])
-            model.learn(end - steps, callback=CallbackList(callbacks), reset_num_timesteps=False)
+        with divergence.watching(model):
+            while model.num_timesteps < config.total_steps and not (evaluation.stopped_early or stop.requested):
+                steps = int(model.num_timesteps)
+                resize_rollouts(model, config.steps_per_update_at(steps) // envs)
+                end = min([s for s in config.steps_per_update.change_steps() if s > steps] + [config.total_steps])
+                model.learn(end - steps, callback=CallbackList(callbacks), reset_num_timesteps=False)
     finally:
         bar.close()
     if stop.requested:
@@ -305,22 +349,22 @@ def _learn(model: PPO, run: ExpertRun, stop: StopFlag) -> str:
     return "early_stop" if evaluation.stopped_early else "budget"
 
 
-def _prepare_directory(expert: ExpertDir, snippet_id: SnippetId, config: ExpertConfig, clips: str | None) -> str:
-    """Checks the snippet against its clip file, then creates the expert directory with its clip info.
-
-    Nothing is created for a clip the file lacks or steps the clip does not have.
+def _check_snippet(snippet_id: SnippetId, clips: str | None) -> tuple[str, int]:
+    """Checks the snippet against its clip file (creating nothing).
 
     Returns:
-        The clip file.
+        The clip file and the clip's frames.
+
+    Raises:
+        KeyError: The file lacks the clip.
+        ValueError: The clip lacks the snippet's steps.
     """
     clip_file = str(resolve_clip_file(clips, [snippet_id.clip_id]))
     lengths = list_clips(clip_file)
     if snippet_id.clip_id not in lengths:
         raise KeyError(f"clip {snippet_id.clip_id} is not in {clip_file}")
     snippet_id.frame_range(lengths[snippet_id.clip_id])  # ValueError: steps outside the clip
-    expert.root.mkdir(parents=True, exist_ok=True)
-    write_clip_info(expert.root, snippet_id, lengths[snippet_id.clip_id])
-    return clip_file
+    return clip_file, lengths[snippet_id.clip_id]
 
 
 def training_envs(tracking: TrackingConfig, config: ExpertConfig) -> DummyVecEnv | SubprocVecEnv:

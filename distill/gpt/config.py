@@ -13,6 +13,9 @@ from distill.dataset.config import SamplerConfig
 from distill.trainer_config import TrainerConfig
 from tasks.observable_sets import OBSERVABLE_SETS
 
+MAX_BLOCK_SIZE = 65_536
+"""The longest context a GPT may have: its key/value cache holds ``block_size`` steps per row and layer."""
+
 
 @dataclass(frozen=True)
 class GptConfig:
@@ -41,12 +44,16 @@ class GptConfig:
     observables: tuple[str, ...] = OBSERVABLE_SETS["gpt"]
 
     def __post_init__(self) -> None:
+        if self.heads < 1 or self.embedding_size < 1:
+            raise ValueError("heads and embedding_size must be at least 1")
         if self.embedding_size % self.heads:
             raise ValueError(f"embedding_size {self.embedding_size} is not divisible by heads {self.heads}")
         if (self.embedding_size // self.heads) % 2:
             raise ValueError("rotary positions need an even head size (embedding_size / heads)")
         if self.layers < 1 or self.block_size < 1:
             raise ValueError("layers and block_size must be at least 1")
+        if self.block_size > MAX_BLOCK_SIZE:
+            raise ValueError(f"block_size {self.block_size} is more than {MAX_BLOCK_SIZE} steps")
         for name in ("embedding_dropout", "attention_dropout", "residual_dropout"):
             if not 0.0 <= getattr(self, name) < 1.0:
                 raise ValueError(f"{name} must be in [0, 1)")

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 import math
 import os
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any, cast
 
@@ -48,7 +48,8 @@ from torch import nn
 
 from distill.gpt.config import GptConfig  # defined there (light), used and re-exported here
 from distill.gpt.shipped import names_hint, resolve_gpt
-from foundation.described_file import read_described, write_described
+from foundation.described_file import check_layout, read_described, write_described
+from foundation.json_fields import dataclass_from_json
 
 GPT_FORMAT = "mocap_hierarchy.motion_gpt"
 GPT_SCHEMA_VERSION = 1
@@ -75,6 +76,10 @@ class GptSpec:
     observation_sizes: dict[str, int]
     action_size: int = 56
     provenance: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not self.observation_sizes or min(self.observation_sizes.values()) < 1 or self.action_size < 1:
+            raise ValueError("a GPT needs observations, each of at least one value, and actions")
 
     @property
     def gpt(self) -> GptConfig:
@@ -417,21 +422,41 @@ def load_gpt(path: str | os.PathLike) -> MotionGpt:
         "motion GPT",
         GptFileError,
         missing_hint=f" (`mocap-hierarchy gpt train` writes it; {names_hint()})",
+        remedy="; copy it again, or train one with `mocap-hierarchy gpt train`",
+        finite=True,
     )
-    try:
-        spec = GptSpec(**description)
-        model = MotionGpt(spec, tensors["observation_mean"], tensors["observation_std"])
-    except (TypeError, KeyError, ValueError) as error:
-        raise GptFileError(f"{path}: incomplete or invalid GPT description ({error})") from None
+    where = str(path)
+    spec = dataclass_from_json(GptSpec, description, f"{where}: GPT description", GptFileError)
+    config = dataclass_from_json(GptConfig, spec.config, f"{where}: GPT description, config", GptFileError)
+    spec = replace(spec, config={**asdict(config), "observables": list(config.observables)})  # defaults filled in
+    statistics = {name: tensors.get(name) for name in ("observation_mean", "observation_std")}
+    for name, tensor in statistics.items():
+        if tensor is None or tuple(tensor.shape) != (spec.observation_size,) or not tensor.is_floating_point():
+            found = "missing" if tensor is None else f"{tensor.dtype} of shape {tuple(tensor.shape)}"
+            raise GptFileError(
+                f"{where}: tensor {name} is {found}; the observables its description lists need "
+                f"({spec.observation_size},) values"
+            )
+    mean, std = tensors["observation_mean"], tensors["observation_std"]
+    if not bool((std > 0).all()):
+        raise GptFileError(f"{where}: tensor observation_std holds values that are not positive")
     weights = {k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")}
-    weights["observation_mean"], weights["observation_std"] = tensors["observation_mean"], tensors["observation_std"]
-    try:
-        model.load_state_dict(weights)
-    except RuntimeError as error:
-        first = str(error).splitlines()[1:2]
-        raise GptFileError(
-            f"{path}: its weights do not fit the architecture it describes ({spec.config['layers']} layers, "
-            f"{spec.config['heads']} heads, embedding {spec.config['embedding_size']}): {' '.join(first).strip()}"
-        ) from None
+    weights["observation_mean"], weights["observation_std"] = mean, std
+    check_layout(
+        lambda: MotionGpt(spec, mean, std),
+        weights,
+        where,
+        f"motion GPT ({config.layers} layers, {config.heads} heads, embedding {config.embedding_size})",
+        GptFileError,
+        layers=config.layers,
+    )
+    model = MotionGpt(spec, mean, std)
+    model.load_state_dict(weights)
     model.eval()
+    probe = model.predict(mean.float().reshape(1, 1, -1).expand(1, 2, -1))
+    if not np.all(np.isfinite(probe)):
+        raise GptFileError(
+            f"{where}: the GPT computes NaN actions from the mean state: its weights are damaged (finite, but too "
+            "large); train one with `mocap-hierarchy gpt train`"
+        )
     return model

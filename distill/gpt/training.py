@@ -37,6 +37,7 @@ from distill.trainer import (
     distributed_from_environment,
     train_on_dataset,
     write_run_summary,
+    writer_lock,
 )
 from foundation.provenance import provenance
 
@@ -107,16 +108,19 @@ def train_gpt(
                 print(cpu_cost_message(gpt, trainer, model.parameter_count(), states, windows.action_size))
         return model
 
-    settings = {"gpt": asdict(gpt)}
-    run = train_on_dataset(data, out, trainer, sampler, groups, build, settings, (GPT_FILE,), progress, "training GPT")
-    model = run.model
-    assert isinstance(model, MotionGpt)
-    count = model.parameter_count()
-    if not run.write:  # under torchrun rank 0 alone writes; a finished run keeps its file
-        return GptResult(out / GPT_FILE, count, run.outcome)
-    model.cpu().eval()
-    facts = {"dataset": run.data_files, "steps": run.outcome.steps, "final_loss": run.outcome.final_loss}
-    model.spec = dataclasses.replace(model.spec, provenance=provenance(dated=False, **facts))
-    path = model.save(out / GPT_FILE)
-    write_run_summary(out / "gpt.json", settings, trainer, sampler, run, parameters=count)
-    return GptResult(path, count, run.outcome)
+    with writer_lock(out):  # one run per output folder
+        settings = {"gpt": asdict(gpt)}
+        run = train_on_dataset(
+            data, out, trainer, sampler, groups, build, settings, (GPT_FILE,), progress, "training GPT"
+        )
+        model = run.model
+        assert isinstance(model, MotionGpt)
+        count = model.parameter_count()
+        if not run.write:  # under torchrun rank 0 alone writes; a finished run keeps its file
+            return GptResult(out / GPT_FILE, count, run.outcome)
+        model.cpu().eval()
+        facts = {"dataset": run.data_files, "steps": run.outcome.steps, "final_loss": run.outcome.final_loss}
+        model.spec = dataclasses.replace(model.spec, provenance=provenance(dated=False, **facts))
+        path = model.save(out / GPT_FILE)
+        write_run_summary(out / "gpt.json", settings, trainer, sampler, run, parameters=count)
+        return GptResult(path, count, run.outcome)

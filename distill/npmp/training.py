@@ -24,7 +24,14 @@ from distill.dataset.reader import RolloutDataset
 from distill.dataset.sampler import SamplerConfig, WindowDataset
 from distill.npmp.config import default_sampler  # defined there (light), used and re-exported here
 from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec
-from distill.trainer import DatasetTraining, TrainerConfig, TrainingOutcome, train_on_dataset, write_run_summary
+from distill.trainer import (
+    DatasetTraining,
+    TrainerConfig,
+    TrainingOutcome,
+    train_on_dataset,
+    write_run_summary,
+    writer_lock,
+)
 from foundation.config_cli import dataclass_flags
 from hierarchy.card_markdown import CARD_FILE, layers_text
 from hierarchy.card_page import write_card
@@ -88,29 +95,30 @@ def train_npmp(
         )
         return NpmpPolicy(spec, means["encoder"], stds["encoder"], means["decoder"], stds["decoder"])
 
-    settings = {"npmp": asdict(npmp)}
-    outputs = (DECODER_FILE, POLICY_FILE, CARD_FILE)
-    run = train_on_dataset(data, out, trainer, sampler, groups, build, settings, outputs, progress, "distilling")
-    if not run.write:  # under torchrun rank 0 alone writes; a finished run keeps its files (and their SHA-256)
-        return DistillResult(out / DECODER_FILE, out / POLICY_FILE, run.outcome)
-    facts = {
-        "dataset": run.data_files,
-        "episodes": run.episodes,
-        "steps": run.outcome.steps,
-        "batch_size": trainer.batch_size,
-        "weighting": sampler.weighting,
-        "final_loss": run.outcome.final_loss,
-    }
-    policy = run.model
-    assert isinstance(policy, NpmpPolicy)
-    policy.cpu().eval()
-    policy.spec = dataclasses.replace(policy.spec, provenance=facts)
-    policy_path = policy.save(out / POLICY_FILE)
-    card = decoder_card(data, out, npmp, trainer, sampler, run)
-    decoder_path = policy.export_decoder(**facts, model_card=card).save(out / DECODER_FILE)
-    write_card(decoder_path, out / CARD_FILE)
-    write_run_summary(out / "distill.json", settings, trainer, sampler, run)
-    return DistillResult(decoder_path, policy_path, run.outcome)
+    with writer_lock(out):  # one run per output folder
+        settings = {"npmp": asdict(npmp)}
+        outputs = (DECODER_FILE, POLICY_FILE, CARD_FILE)
+        run = train_on_dataset(data, out, trainer, sampler, groups, build, settings, outputs, progress, "distilling")
+        if not run.write:  # under torchrun rank 0 alone writes; a finished run keeps its files (and their SHA-256)
+            return DistillResult(out / DECODER_FILE, out / POLICY_FILE, run.outcome)
+        facts = {
+            "dataset": run.data_files,
+            "episodes": run.episodes,
+            "steps": run.outcome.steps,
+            "batch_size": trainer.batch_size,
+            "weighting": sampler.weighting,
+            "final_loss": run.outcome.final_loss,
+        }
+        policy = run.model
+        assert isinstance(policy, NpmpPolicy)
+        policy.cpu().eval()
+        policy.spec = dataclasses.replace(policy.spec, provenance=facts)
+        policy_path = policy.save(out / POLICY_FILE)
+        card = decoder_card(data, out, npmp, trainer, sampler, run)
+        decoder_path = policy.export_decoder(**facts, model_card=card).save(out / DECODER_FILE)
+        write_card(decoder_path, out / CARD_FILE)
+        write_run_summary(out / "distill.json", settings, trainer, sampler, run)
+        return DistillResult(decoder_path, policy_path, run.outcome)
 
 
 def decoder_card(

@@ -27,6 +27,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from foundation.described_file import require_finite
 from foundation.fingerprints import file_sha256
 from foundation.inert_pickle import InertStub, numpy_globals, stub_for, stub_state
 from foundation.networks import ACTIVATIONS
@@ -61,7 +62,11 @@ _Allowed = Callable[..., Any] | tuple[Callable[..., Any], str]
 def _safe_globals(path: Path) -> list[_Allowed]:
     """Allowlist for ``torch.load(weights_only=True)``: real numpy reconstruction, stubs for the rest."""
     real_globals = numpy_globals()
-    if not zipfile.is_zipfile(path):
+    try:
+        is_zip = zipfile.is_zipfile(path)
+    except zipfile.BadZipFile:  # an end record that claims other disks, or other damage is_zipfile does not catch
+        is_zip = False
+    if not is_zip:
         raise MocapActImportError(
             f"{path} is not a PyTorch checkpoint written by torch.save (not a zip archive); "
             "expected MoCapAct's multi-clip policy (a Lightning .ckpt file)"
@@ -129,6 +134,13 @@ def _decoder_weights(state_dict: Mapping[str, Any], path: Path) -> list[dict[str
             f"{path}: the state_dict has no {DECODER_PREFIX}* weights (it holds {', '.join(prefixes) or 'nothing'}); "
             "is this MoCapAct's multi-clip policy?"
         )
+    for index, params in modules.items():
+        require_finite(
+            {f"{DECODER_PREFIX}{index}.{name}": value for name, value in params.items()},
+            str(path),
+            "decoder",
+            MocapActImportError,
+        )
     ordered = [modules[i] for i in sorted(modules)]
     for i, params in zip(sorted(modules), ordered, strict=True):
         if set(params) != {"weight", "bias"} or params["weight"].ndim not in (1, 2):
@@ -184,10 +196,15 @@ def _observation_statistics(
         rms = stub_state(statistics.get(key))
         if rms is None or "mean" not in rms or "var" not in rms:
             raise MocapActImportError(f"{path}: obs_rms has no mean and var for the decoder's observation {key!r}")
-        mean = np.asarray(rms["mean"], dtype=np.float64).reshape(-1)
-        var = np.asarray(rms["var"], dtype=np.float64).reshape(-1)
-        if mean.shape != var.shape:
+        try:
+            mean = np.asarray(rms["mean"], dtype=np.float64).reshape(-1)
+            var = np.asarray(rms["var"], dtype=np.float64).reshape(-1)
+        except (TypeError, ValueError) as error:  # a stub or a string where an array belongs
+            raise MocapActImportError(f"{path}: obs_rms[{key!r}] is not numbers ({_first_line(error)})") from None
+        if mean.shape != var.shape or not mean.size:
             raise MocapActImportError(f"{path}: obs_rms[{key!r}] has {mean.size} means but {var.size} variances")
+        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)):
+            raise MocapActImportError(f"{path}: obs_rms[{key!r}] holds NaN, infinite or negative statistics")
         sizes[key] = mean.size
         means.append(mean)
         stds.append(np.sqrt(var + OBS_RMS_EPSILON))

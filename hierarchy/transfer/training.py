@@ -29,11 +29,22 @@ from tqdm.auto import tqdm
 
 from foundation.atomic import write_json
 from foundation.config_files import config_to_dict
+from foundation.divergence import TrainingDiverged
 from foundation.fingerprints import file_sha256
 from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
 from foundation.provenance import provenance
-from foundation.sb3 import SAVE_EXCLUDE, StepSize, build_ppo, load_ppo, resumable_logger, save_sb3
-from foundation.sb3_callbacks import AdaptiveStepSize
+from foundation.run_lock import run_lock
+from foundation.sb3 import (
+    SAVE_EXCLUDE,
+    StepSize,
+    build_ppo,
+    load_ppo,
+    non_finite_state,
+    resumable_logger,
+    save_sb3,
+    saved_steps,
+)
+from foundation.sb3_callbacks import AdaptiveStepSize, StopOnDivergence
 from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionVecEnv
 from hierarchy.latent_prior import LatentPrior, load_latent_prior, resolve_prior, shipped_prior_name
@@ -88,6 +99,9 @@ def train_transfer(
     Raises:
         hierarchy.DecoderMismatchError: The decoder does not fit the task (or the prior the decoder).
         foundation.resume.SettingsMismatchError: ``out`` holds a run of other settings.
+        foundation.run_lock.RunFolderInUseError: Another run is writing ``out``.
+        foundation.divergence.TrainingDiverged: An update made the losses, weights or normaliser NaN or
+            infinite; the last checkpoint written before it is kept.
     """
     config = config or TransferConfig()
     config.validate()
@@ -100,31 +114,48 @@ def train_transfer(
     prior, prior_facts = _prior_for(latent_prior, frozen)
     checkpoint = out / CHECKPOINT_DIR
     prior_sha = prior_facts["sha256"] if prior_facts is not None else None
-    check_resume(
-        checkpoint, resume_settings(source.name, source.overrides, decoder_sha, config, prior_sha), behaviour_sha
-    )
+    with run_lock(out):  # one writer per run folder, from the resume check on
+        check_resume(
+            checkpoint, resume_settings(source.name, source.overrides, decoder_sha, config, prior_sha), behaviour_sha
+        )
 
-    venv = _vec_env(source, frozen, config, prior)
-    model = _resume_or_build(checkpoint, venv, config, with_decoder=frozen is not None, out=out)
-    resumed = model.num_timesteps > 0
-    model.set_logger(resumable_logger(out, ["csv", "tensorboard"], resumed=resumed))
+        venv = _vec_env(source, frozen, config, prior)
+        model = _resume_or_build(checkpoint, venv, config, with_decoder=frozen is not None, out=out)
+        resumed = model.num_timesteps > 0
+        model.set_logger(resumable_logger(out, ["csv", "tensorboard"], resumed=resumed))
 
-    task_returns = TaskReturns.load(checkpoint / TASK_RETURNS_FILE) if resumed else TaskReturns()
-    remaining = config.total_steps - model.num_timesteps
-    if remaining > 0:
-        with stop_requests() as stop:
-            callback = _ProgressAndCheckpoint(
-                config.total_steps, config.checkpoint_every, checkpoint, progress, config.ppo.epochs, stop, task_returns
-            )
-            model.learn(remaining, callback=CallbackList([callback, AdaptiveStepSize()]), reset_num_timesteps=False)
-            if stop.requested:
-                venv.close()
-                raise stop.stop(f"transfer: stopped at step {model.num_timesteps}", "run the same command again")
+        task_returns = TaskReturns.load(checkpoint / TASK_RETURNS_FILE) if resumed else TaskReturns()
+        remaining = config.total_steps - model.num_timesteps
+        if remaining > 0:
+            with stop_requests() as stop:
+                every = config.checkpoint_every
+                callback = _ProgressAndCheckpoint(
+                    config.total_steps, every, checkpoint, progress, config.ppo.epochs, stop, task_returns
+                )
+                divergence = StopOnDivergence("transfer", functools.partial(_kept_checkpoint, checkpoint))
+                try:  # the divergence check first: nothing is saved from an update that went wrong
+                    with divergence.watching(model):
+                        callbacks = CallbackList([divergence, callback, AdaptiveStepSize()])
+                        model.learn(remaining, callback=callbacks, reset_num_timesteps=False)
+                except TrainingDiverged:
+                    venv.close()
+                    raise
+                if stop.requested:
+                    venv.close()
+                    raise stop.stop(f"transfer: stopped at step {model.num_timesteps}", "run the same command again")
 
-    path = _save_policy(out, model, source, decoder, decoder_sha, config, prior_facts, behaviour_sha)
-    _save_resume_files(model, checkpoint, task_returns)
-    venv.close()
+        path = _save_policy(out, model, source, decoder, decoder_sha, config, prior_facts, behaviour_sha)
+        _save_resume_files(model, checkpoint, task_returns)
+        venv.close()
     return path
+
+
+def _kept_checkpoint(checkpoint: Path) -> str:
+    """What a run that diverged keeps: its last resume files (written from finite weights), if any."""
+    steps = saved_steps(checkpoint / MODEL_FILE)
+    if steps is None:
+        return "no checkpoint was written yet"
+    return f"the last good checkpoint (step {steps}) is kept in {checkpoint}"
 
 
 def _prior_for(
@@ -226,7 +257,15 @@ def _save_resume_files(model, folder: Path, task_returns: TaskReturns) -> None:
     """SB3's model and normaliser (the run's own resume files) and the task returns the log averages.
 
     Under the adaptive rule, also the step size it reached (the model file leaves the step size out).
+    Nothing is written from weights or statistics that are NaN or infinite (the files there stay).
+
+    Raises:
+        TrainingDiverged: A weight or statistic is not finite.
     """
+    problem = non_finite_state(model)
+    if problem is not None:
+        kept = f"the files in {folder} are the last good ones"
+        raise TrainingDiverged("transfer: refusing to save the resume files", model.num_timesteps, *problem, kept)
     task_returns.save(folder / TASK_RETURNS_FILE)
     step_size = model.lr_schedule
     if isinstance(step_size, StepSize) and step_size.ppo.schedule == "adaptive":

@@ -30,13 +30,20 @@ def add_commands(subparsers: LazySubParsers) -> None:
 
 
 def _rollout(args: argparse.Namespace) -> None:
-    from distill.dataset.metrics import write_dataset_metrics
-    from distill.dataset.writer import rollout_clip, rollout_jobs
-    from distill.experts.fanout import run_jobs, summarise
+    from foundation.run_lock import run_lock
 
     config = dataclass_from_args(RolloutConfig, args)
     if config.engine == "warp" and (args.workers > 1 or args.ray is not None):
         raise ValueError("--engine warp rolls every clip out in this process on one device; drop --workers/--ray")
+    with run_lock(args.out):  # one run per dataset folder (its workers write the clip files under it)
+        _rollout_into(args, config)
+
+
+def _rollout_into(args: argparse.Namespace, config: RolloutConfig) -> None:
+    from distill.dataset.metrics import write_dataset_metrics
+    from distill.dataset.writer import rollout_clip, rollout_jobs
+    from distill.experts.fanout import run_jobs, summarise
+
     jobs = rollout_jobs(args.experts, args.out, config, args.clips)
     if args.workers <= 1 and args.ray is None:
         for job in jobs:

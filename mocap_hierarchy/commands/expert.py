@@ -26,6 +26,7 @@ from foundation.config_cli import (
     given_fields,
 )
 from foundation.config_files import config_to_toml, read_config_file, setting_names, with_settings
+from foundation.run_lock import run_lock
 from mocap_hierarchy.commands import add_precision_arguments, read_json_file
 
 EXPERT_HELP = "an expert directory or a shipped expert's name (synthetic-v3/SYN_walk_slow-0-182)"
@@ -210,8 +211,9 @@ def _train_many(args: argparse.Namespace) -> None:
     if args.print_config:
         _print_config(config, args)
         return
-    jobs = expert_jobs(snippets, args.out, config, args.clips)
-    reports = run_jobs(jobs, workers=args.workers, max_attempts=args.max_attempts, ray_address=args.ray)
+    with run_lock(args.out):  # the group folder; each job holds its own expert's folder too
+        jobs = expert_jobs(snippets, args.out, config, args.clips)
+        reports = run_jobs(jobs, workers=args.workers, max_attempts=args.max_attempts, ray_address=args.ray)
     print(summarise(reports))
     if any(r.status == "failed" for r in reports):
         sys.exit(1)
@@ -236,7 +238,8 @@ def _train_many_batched(args: argparse.Namespace, snippets: list[str]) -> None:
         return
     from distill.experts.batched_training import train_experts_batched
 
-    finished = train_experts_batched(snippets, args.out, config, clips=args.clips)
+    with run_lock(args.out):  # the group folder: this one process writes every expert in it
+        finished = train_experts_batched(snippets, args.out, config, clips=args.clips)
     print(f"{'snippet':<28}{'best norm. reward':>18}{'best norm. length':>18}{'CPU eval length':>16}")
     for snippet, summary in finished.items():
         best = summary.get("best") or {}

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+import gzip
 import json
+import lzma
 import os
 import shutil
 import tarfile
@@ -21,6 +23,8 @@ MANIFEST_NAME = "download_manifest.json"
 MANIFEST_FORMAT = "mocap_hierarchy.download_manifest"
 MANIFEST_VERSION = 1
 STAGING_PREFIX = ".extracting-"
+REDOWNLOAD = "delete it and run the same `mocap-hierarchy download` command again"
+"""How a message about a damaged archive ends."""
 
 
 @dataclass
@@ -73,7 +77,8 @@ def extract_members(
     ``data`` filter (no links leaving the folder, no devices); one unsafe member, even one
     ``select`` skips, refuses the whole archive. Everything lands
     in a temporary folder inside ``target`` first and is moved into place once the archive
-    has been read to its end.
+    has been read to its end (a compressed archive's checksum, which gzip keeps after the
+    data, included): a damaged or truncated archive leaves nothing behind.
     """
     target.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, dir=target))
@@ -94,11 +99,22 @@ def extract_members(
     try:
         with tarfile.open(archive, "r:*") as tar:
             tar.extractall(staging, members=members(tar), filter="data")
+            while tar.fileobj is not None and tar.fileobj.read(1 << 20):  # to the end: gzip checks its CRC there
+                pass
         _merge_into(staging, target)
     except tarfile.FilterError as error:
         raise DownloadError(f"{name} holds an unsafe member ({error}); nothing from it was extracted") from None
-    except (tarfile.TarError, EOFError, zlib.error) as error:
-        raise DownloadError(f"{name} is not a readable tar archive ({error}); nothing from it was extracted") from None
+    except (tarfile.TarError, EOFError, zlib.error, gzip.BadGzipFile, lzma.LZMAError) as error:
+        raise DownloadError(
+            f"{name} is not a readable tar archive ({error}); nothing from it was extracted: {REDOWNLOAD}"
+        ) from None
+    except OSError as error:
+        if error.errno is not None:  # the disk (full, read-only): the command line names the file and what to do
+            raise
+        # bz2 and a damaged stream raise OSError without an errno
+        raise DownloadError(
+            f"{name} is not a readable tar archive ({error}); nothing from it was extracted: {REDOWNLOAD}"
+        ) from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)
     return files

@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 from foundation.fingerprints import file_sha256
+from foundation.run_lock import run_lock
 from mocap_hierarchy.download.catalogue import (
     DownloadError,
     Log,
@@ -59,6 +60,7 @@ def download_cmu(
     Raises:
         DownloadError: The server cannot be reached, the transfer kept failing (run again to
             resume), or the file arrived corrupted (deleted).
+        RunFolderInUseError: Another download of it runs into the same folder.
     """
     from dm_control.locomotion.mocap import cmu_mocap_data as cmu
 
@@ -72,23 +74,23 @@ def download_cmu(
             log(f"{target} is already there (size and sha256 verified)")
             return target
         log(f"{target} is there but its sha256 is wrong: downloading it again")
-    folder.mkdir(parents=True, exist_ok=True)
     part = target.with_name(target.name + ".part")
     by_hand = (
         f"download {url} ({size:,} bytes, sha256 {sha256}) and put it at {target} "
         f"(or anywhere, and set {CMU_FILE_ENV} to its path)"
     )
-    _transfer_with_resume(
-        url, part, size, attempts=attempts, progress=progress, log=log, timeout_s=timeout_s, by_hand=by_hand
-    )
-    problems = mismatches(part, size, sha256)
-    if problems:
-        part.unlink(missing_ok=True)
-        raise DownloadError(
-            f"corrupted download of {url}: {problems}; the file was deleted; run the command again "
-            "(if it happens again, the server's copy or the network is at fault)"
+    with run_lock(folder):  # one download at a time appends to the partial file
+        _transfer_with_resume(
+            url, part, size, attempts=attempts, progress=progress, log=log, timeout_s=timeout_s, by_hand=by_hand
         )
-    os.replace(part, target)
+        problems = mismatches(part, size, sha256)
+        if problems:
+            part.unlink(missing_ok=True)
+            raise DownloadError(
+                f"corrupted download of {url}: {problems}; the file was deleted; run the command again "
+                "(if it happens again, the server's copy or the network is at fault)"
+            )
+        os.replace(part, target)
     log(f"wrote {target} ({size:,} bytes, sha256 verified)")
     if folder.resolve() != default_cmu_folder().resolve():
         log(f"dm_control looks in {default_cmu_folder()}; point to this file with {CMU_FILE_ENV}={target}")

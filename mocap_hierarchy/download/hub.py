@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+from foundation.run_lock import run_lock
 from mocap_hierarchy.download.archives import (
     Manifest,
     already_done,
@@ -214,12 +215,18 @@ def download_multiclip(
     Raises:
         DownloadError: The Hub cannot be reached, the file is corrupted (deleted), or the
             archive has no checkpoint for ``policy`` (the message lists those it has).
+        RunFolderInUseError: Another download writes into ``out``.
     """
+    folder = Path(out) if out is not None else default_out()
+    with run_lock(folder):  # one download per output folder: they share its manifest
+        return _download_multiclip(folder, policy, hub or HubSettings(), latent_bound, log)
+
+
+def _download_multiclip(out: Path, policy: str, hub: HubSettings, latent_bound: float, log: Log) -> DownloadReport:
+    """:func:`download_multiclip` once ``out`` is this run's."""
     from hierarchy.importers.mocapact import import_mocapact_checkpoint
 
-    hub = hub or HubSettings()
-
-    run = HubRun(ARTIFACTS["multiclip"], hub, Path(out) if out is not None else default_out(), log)
+    run = HubRun(ARTIFACTS["multiclip"], hub, out, log)
     run.start()
     remove_stale_staging(run.out)
     decoder_path = run.out / decoder_file_name(policy)
@@ -290,17 +297,26 @@ def download_archives(
         ValueError: ``snippets`` for a dataset, or a malformed snippet id.
         DownloadError: The Hub cannot be reached, a file is corrupted (deleted), or an
             archive holds an unsafe member (nothing of it extracted).
+        RunFolderInUseError: Another download writes into ``out``.
     """
     from tasks.clips.snippets import parse_snippet_id  # here: the snippet module loads h5py (help stays light)
 
-    hub = hub or HubSettings()
     if name not in ARTIFACTS or name == "multiclip":
         raise KeyError(f"unknown archive artifact {name!r}; choose from {sorted(set(ARTIFACTS) - {'multiclip'})}")
     artifact = ARTIFACTS[name]
     wanted = None if snippets is None else {str(parse_snippet_id(s)) for s in snippets}
     if wanted is not None and not artifact.experts:
         raise ValueError(f"snippets select experts; {name} is a dataset, which is extracted whole")
-    run = HubRun(artifact, hub, Path(out) if out is not None else default_out(), log)
+    folder = Path(out) if out is not None else default_out()
+    with run_lock(folder):  # one download per output folder: they share its manifest
+        return _download_archives(artifact, folder, wanted, hub or HubSettings(), log)
+
+
+def _download_archives(
+    artifact: HubArtifact, out: Path, wanted: set[str] | None, hub: HubSettings, log: Log
+) -> DownloadReport:
+    """:func:`download_archives` once ``out`` is this run's."""
+    run = HubRun(artifact, hub, out, log)
     target = run.out / artifact.subdir
     run.start()
     remove_stale_staging(target)

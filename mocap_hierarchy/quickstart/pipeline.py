@@ -9,6 +9,7 @@ from typing import Any
 
 from foundation.atomic import write_json
 from foundation.fingerprints import file_sha256
+from foundation.run_lock import run_lock
 from hierarchy.pretrained import names_hint, resolve_decoder
 from mocap_hierarchy.quickstart.config import MODE_LABELS, NO_PRIOR, OWN_DECODER, SHIPPED_PRIOR, QuickstartConfig
 from mocap_hierarchy.quickstart.plots import plots_stage
@@ -34,19 +35,21 @@ def run_quickstart(config: QuickstartConfig) -> dict:
 
     The summary's ``seconds`` is the time of the whole job: the runs with these
     settings up to the first that finished every stage, interruptions included;
-    ``runs`` lists every run into the folder (``stages/runs.json``).
+    ``runs`` lists every run into the folder (``stages/runs.json``). The folder is this run's alone
+    while it works (:func:`foundation.run_lock.run_lock`; each stage holds its own subfolder too).
     """
     out = Path(config.out)
-    log = RunLog(out / STAGES_DIR / "runs.json", settings_digest(config))
-    try:
-        summary = _run_stages(config, out, StageRunner(out / STAGES_DIR, log))
-        log.finished = True
-    finally:
-        log.save()
-    summary["verdicts"] = summary_verdicts(summary)
-    summary["seconds"] = log.job_seconds()
-    summary["runs"] = log.runs
-    write_json(out / "summary.json", summary)
+    with run_lock(out):
+        log = RunLog(out / STAGES_DIR / "runs.json", settings_digest(config))
+        try:
+            summary = _run_stages(config, out, StageRunner(out / STAGES_DIR, log))
+            log.finished = True
+        finally:
+            log.save()
+        summary["verdicts"] = summary_verdicts(summary)
+        summary["seconds"] = log.job_seconds()
+        summary["runs"] = log.runs
+        write_json(out / "summary.json", summary)
     print_summary(summary)
     print(f"summary written to {out / 'summary.json'}")
     return summary

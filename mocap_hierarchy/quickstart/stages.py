@@ -130,7 +130,7 @@ def distill_stage(data: Path, out: Path, expert_rows: list[dict], config: Quicks
     )
     print(f"\ndistilling the multi-clip policy: {steps} steps, hidden layers of {hidden}")
     sampler = replace(default_sampler(), window=10)
-    result = train_npmp(data, out, npmp, trainer, sampler)
+    result = train_npmp(data, out, npmp, trainer, sampler)  # holds the folder's run lock
     experts = {row["snippet"]: row for row in expert_rows if "normalized_reward" in row}
     evaluation = PolicyEvaluationConfig(episodes=max(4, round(10 * config.scale)), init="start", seed=config.seed)
     policy = load_policy(result.policy)

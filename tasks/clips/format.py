@@ -38,6 +38,7 @@ import h5py
 import numpy as np
 
 from foundation.atomic import atomic_path
+from foundation.hdf5_files import hdf5_errors, read_bounded
 
 SCHEMA_VERSION = 1
 """Value of the root attribute ``mocap_hierarchy_clips`` in files we write."""
@@ -60,6 +61,10 @@ FEATURE_SIZES: dict[str, int] = {
 
 class ClipFileError(ValueError):
     """A clip file is missing, unreadable or does not follow the layout."""
+
+
+REGENERATE = "regenerate it with `mocap-hierarchy clips write-synthetic` or download the CMU file again"
+"""How a message about a damaged clip file ends."""
 
 
 @dataclass(frozen=True)
@@ -180,22 +185,27 @@ def open_clip_file(path: str | os.PathLike) -> h5py.File:
     try:
         return h5py.File(path, "r")
     except OSError as error:
-        raise ClipFileError(
-            f"clip file {path} is not a readable HDF5 file ({error}); "
-            "regenerate it with `mocap-hierarchy clips write-synthetic` or re-download the CMU file"
-        ) from error
+        raise ClipFileError(f"clip file {path} is not a readable HDF5 file ({error}); {REGENERATE}") from None
 
 
 def list_clips(path: str | os.PathLike) -> dict[str, int]:
     """Clip ids in a file with their number of frames, sorted by id."""
-    with open_clip_file(path) as f:
+    with open_clip_file(path) as f, hdf5_errors(str(path), ClipFileError, REGENERATE):
         out = {}
         for clip_id in sorted(f.keys()):
             group = f[clip_id]
             if not isinstance(group, h5py.Group) or "num_steps" not in group.attrs:
                 raise ClipFileError(f"{path}: /{clip_id} is not a clip group (no num_steps attribute)")
-            out[clip_id] = int(np.asarray(group.attrs["num_steps"]).item())
+            out[clip_id] = _count(group.attrs["num_steps"], f"{path}: clip {clip_id}")
         return out
+
+
+def _count(value: object, where: str) -> int:
+    """The ``num_steps`` attribute as a positive integer."""
+    array = np.asarray(value)
+    if array.shape not in ((), (1,)) or array.dtype.kind not in "iu" or int(array.reshape(-1)[0]) < 1:
+        raise ClipFileError(f"{where} has num_steps {value!r}, not a positive integer; {REGENERATE}")
+    return int(array.reshape(-1)[0])
 
 
 def read_clip(path: str | os.PathLike, clip_id: str) -> Clip:
@@ -211,6 +221,11 @@ def read_clip(path: str | os.PathLike, clip_id: str) -> Clip:
 
 def read_clip_from(f: h5py.File, clip_id: str) -> Clip:
     """Reads one clip from an open file (see :func:`read_clip`)."""
+    with hdf5_errors(f"{f.filename}: clip {clip_id}", ClipFileError, REGENERATE):
+        return _read_clip_from(f, clip_id)
+
+
+def _read_clip_from(f: h5py.File, clip_id: str) -> Clip:
     where = f"{f.filename}: clip {clip_id}"
     if clip_id not in f:
         raise ClipFileError(
@@ -222,8 +237,8 @@ def read_clip_from(f: h5py.File, clip_id: str) -> Clip:
     for attr in ("num_steps", "dt"):
         if attr not in group.attrs:
             raise ClipFileError(f"{where} has no {attr!r} attribute")
-    num_steps = int(np.asarray(group.attrs["num_steps"]).item())
-    dt = float(np.asarray(group.attrs["dt"]).item())
+    num_steps = _count(group.attrs["num_steps"], where)
+    dt = float(np.asarray(group.attrs["dt"], dtype=np.float64).item())
     if num_steps < 1 or not np.isfinite(dt) or dt <= 0:
         raise ClipFileError(f"{where} has num_steps={num_steps}, dt={dt}: both must be positive")
     for required in ("props", "walkers/walker_0/scaling", "walkers/walker_0/markers"):
@@ -234,18 +249,19 @@ def read_clip_from(f: h5py.File, clip_id: str) -> Clip:
         raise ClipFileError(f"{where}: walkers/walker_0 is not an HDF5 group")
     arrays = {}
     for name, size in FEATURE_SIZES.items():
-        if name not in walker:
+        dataset = walker.get(name)
+        if not isinstance(dataset, h5py.Dataset):
             raise ClipFileError(f"{where} lacks the dataset walkers/walker_0/{name}")
-        values = np.asarray(walker[name], dtype=np.float64)
-        if values.shape != (size, num_steps):
+        if dataset.shape != (size, num_steps) or dataset.dtype.kind not in "fiu":
             raise ClipFileError(
-                f"{where}: walkers/walker_0/{name} has shape {values.shape}, expected {(size, num_steps)}"
-                " (V2020 walker layout: features x steps)"
+                f"{where}: walkers/walker_0/{name} is {dataset.dtype} of shape {dataset.shape}, expected numbers of "
+                f"shape {(size, num_steps)} (V2020 walker layout: features x steps)"
             )
+        values = read_bounded(dataset, f"{where}: walkers/walker_0/{name}", ClipFileError).astype(np.float64)
         if not np.all(np.isfinite(values)):
             raise ClipFileError(f"{where}: walkers/walker_0/{name} contains NaN or infinite values")
         arrays[name] = np.ascontiguousarray(values.T)
     description = group.attrs.get("description", "")
     if isinstance(description, bytes):
-        description = description.decode()
+        description = description.decode(errors="replace")
     return Clip(clip_id=clip_id, dt=dt, description=str(description), **arrays)

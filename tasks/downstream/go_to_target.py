@@ -20,6 +20,7 @@ curves and evaluations report.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -55,6 +56,8 @@ class GoToTargetConfig:
 
 class GoToTargetEnv(WalkerTaskEnv):
     """Walk to a target that moves once reached (see the module docstring)."""
+
+    episode_attributes: ClassVar[tuple[str, ...]] = ("_target", "_rewarded_steps", "_last_distance")
 
     def __init__(self, config: GoToTargetConfig | None = None, walker: WalkerModel | None = None) -> None:
         self.config = config = config or GoToTargetConfig()

@@ -34,6 +34,7 @@ prompt) and ``fell_during_prompt``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -104,6 +105,13 @@ class MotionCompletionEnv(ClipTrackingEnv):
         ValueError: The prompt is not shorter than a snippet, or ``max_steps`` leaves no completion.
     """
 
+    episode_attributes: ClassVar[tuple[str, ...]] = (
+        "_joint_weights",
+        "_reference_speed",
+        "_joint_speeds",
+        "_prompt_end_root",
+    )
+
     def __init__(self, config: MotionCompletionConfig | None = None, walker: WalkerModel | None = None) -> None:
         self.completion = config = config or MotionCompletionConfig()
         if config.prompt_steps < 0:
@@ -131,6 +139,10 @@ class MotionCompletionEnv(ClipTrackingEnv):
                     f"has {reference.last_step} steps to track; use a shorter --prompt-steps or longer snippets"
                 )
         self._body_geoms, self._ground_geoms = self.walker.fall_geoms()
+        self._joint_weights = np.zeros(self.walker.num_joints)
+        self._reference_speed = 0.0
+        self._joint_speeds: list[float] = []
+        self._prompt_end_root = np.zeros(2)
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Starts an episode (see :meth:`ClipTrackingEnv.reset`) and its motion record."""
@@ -139,7 +151,7 @@ class MotionCompletionEnv(ClipTrackingEnv):
         activity = np.abs(reference.joints_velocity[: reference.last_step + 1]).mean(axis=0)
         self._joint_weights = activity / max(float(activity.sum()), 1e-9)
         self._reference_speed = float(self._joint_weights @ activity)
-        self._joint_speeds: list[float] = []
+        self._joint_speeds = []
         self._prompt_end_root = self._walker_state.root_position[:2].copy()
         return observation, info
 

@@ -14,6 +14,7 @@ current command's 10 s elapsed), MoCapAct's names.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 
@@ -90,6 +91,8 @@ class VelocityControlConfig:
 
 class VelocityControlEnv(WalkerTaskEnv):
     """Follow a randomly changing velocity command (see the module docstring)."""
+
+    episode_attributes: ClassVar[tuple[str, ...]] = ("_speed", "_heading", "_command_age", "_commands")
 
     def __init__(self, config: VelocityControlConfig | None = None, walker: WalkerModel | None = None) -> None:
         self.config = config = config or VelocityControlConfig()

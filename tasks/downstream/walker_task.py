@@ -9,6 +9,10 @@ the feet touching the floor) and the step limit.
 Observations always include every proprioceptive observable (so any decoder
 finds its inputs) plus the task's own keys.
 
+Snapshots: :meth:`WalkerTaskEnv.get_state` and :meth:`WalkerTaskEnv.set_state` save and restore
+the physics, ``np_random`` and every attribute a class lists in ``episode_attributes`` (a task
+lists those its episodes change), so a restored task continues bit for bit (:mod:`tasks.env_state`).
+
 Every step's ``info`` carries ``task_reward`` (the task's own reward for the step)
 and ``task_return`` (its sum so far in the episode). They equal the reward and the
 return unless the task adds an opt-in training term to its reward (go-to-target's
@@ -19,14 +23,32 @@ without such a term are scored alike.
 from __future__ import annotations
 
 import functools
-from typing import ClassVar
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 
+from tasks.env_state import (
+    attributes_state,
+    check_attributes,
+    check_state_class,
+    env_rng_state,
+    episode_attributes,
+    restore_attributes,
+    restore_env_rng,
+    state_class,
+)
 from tasks.observables import PROPRIOCEPTION, Proprioception
-from tasks.simulation import checked_action, control_step, disallowed_contact, forward_without_actuation
+from tasks.simulation import (
+    checked_action,
+    control_step,
+    disallowed_contact,
+    forward_without_actuation,
+    physics_state,
+    restore_physics,
+)
 from tasks.walker import CONTROL_TIMESTEP, DOWNSTREAM_FLOOR_SIZE, WalkerModel, build_walker
 
 
@@ -51,7 +73,10 @@ class WalkerTaskEnv(gym.Env):
     """A task for the CMU humanoid built from hooks (see the module docstring).
 
     Subclasses implement :meth:`_task_reset`, :meth:`_task_step` and
-    :meth:`_task_observation`, and pass their observation sizes.
+    :meth:`_task_observation`, and pass their observation sizes. A subclass whose
+    episodes change attributes of its own (a target, a command, a timer) names them in
+    ``episode_attributes`` (plain data: numbers, strings, arrays, lists, dicts), so
+    :meth:`get_state` saves them; the base's and its other subclasses' are added.
 
     Args:
         task_observations: Sizes of the task's own observation keys.
@@ -61,6 +86,8 @@ class WalkerTaskEnv(gym.Env):
     """
 
     metadata: ClassVar[dict] = {"render_modes": [], "render_fps": round(1 / CONTROL_TIMESTEP)}
+    episode_attributes: ClassVar[tuple[str, ...]] = ("_steps", "_task_return", "_episode_active")
+    """Attributes an episode changes, saved by :meth:`get_state` (each class lists its own)."""
 
     def __init__(self, task_observations: dict[str, int], max_steps: int, walker: WalkerModel | None = None) -> None:
         if max_steps < 1:
@@ -140,6 +167,40 @@ class WalkerTaskEnv(gym.Env):
         if terminated or truncated:
             self._episode_active = False
         return self._observation(), float(reward), terminated, truncated, info
+
+    # Snapshots ------------------------------------------------------------------------
+
+    def get_state(self) -> dict[str, Any]:
+        """The task's complete state as plain data (see :mod:`tasks.env_state`).
+
+        Returns:
+            ``{"class", "physics", "rng", "episode"}``: the class name; MuJoCo's state
+            (:func:`tasks.simulation.physics_state`); ``np_random`` (None before the first
+            seeding); and ``{name: value}`` of every attribute in ``episode_attributes``.
+        """
+        return {
+            "class": state_class(self),
+            "physics": physics_state(self._model, self._data),
+            "rng": env_rng_state(self),
+            "episode": attributes_state(self, episode_attributes(type(self))),
+        }
+
+    def set_state(self, state: Mapping[str, Any]) -> None:
+        """Restores a :meth:`get_state` of a task of the same class and configuration.
+
+        The next steps (and resets) then give bit-identical results to those of the task
+        the snapshot was taken of.
+
+        Raises:
+            tasks.env_state.EnvStateError: The snapshot is of another class or its variables do not fit.
+        """
+        check_state_class(self, state)
+        names = episode_attributes(type(self))
+        check_attributes(state["episode"], names)
+        restore_physics(self._model, self._data, state["physics"], after_step=int(state["episode"]["_steps"]) > 0)
+        mujoco.mj_subtreeVel(self._model, self._data)  # as after a reset or a step
+        restore_attributes(self, state["episode"], names)
+        restore_env_rng(self, state["rng"])
 
     def _observation(self) -> dict[str, np.ndarray]:
         out = self._proprioception.read_all(self._data, PROPRIOCEPTION)

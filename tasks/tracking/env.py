@@ -24,12 +24,17 @@ Episode semantics (dm_control's):
 * at the end of an episode ``info`` holds MoCapAct's normalised episode
   reward and length, and the tracking metrics of :mod:`tasks.tracking.metrics`
   (success, position, velocity and acceleration errors in millimetres).
+
+:meth:`ClipTrackingEnv.get_state` and :meth:`ClipTrackingEnv.set_state` snapshot and restore
+the whole environment (physics, ``np_random``, the episode in progress) as plain data; a
+restored environment continues bit for bit (:mod:`tasks.env_state`).
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import mujoco
@@ -38,6 +43,18 @@ import numpy as np
 from tasks.clips.format import ClipFileError, open_clip_file, read_clip_from
 from tasks.clips.snippets import SnippetId, parse_snippet_id
 from tasks.clips.sources import resolve_clip_file
+from tasks.env_state import (
+    EnvStateError,
+    attributes_state,
+    check_attributes,
+    check_same,
+    check_state_class,
+    env_rng_state,
+    episode_attributes,
+    restore_attributes,
+    restore_env_rng,
+    state_class,
+)
 from tasks.geometry import quat_diff, quat_to_axisangle
 from tasks.observables import (
     ALL_PROPRIOCEPTION,
@@ -48,7 +65,13 @@ from tasks.observables import (
     observation_sizes,
     resolve_observables,
 )
-from tasks.simulation import checked_action, control_step, forward_without_actuation
+from tasks.simulation import (
+    checked_action,
+    control_step,
+    forward_without_actuation,
+    physics_state,
+    restore_physics,
+)
 from tasks.tracking.metrics import FAILURE_DISTANCE, TERMINATIONS, EpisodeTrackingErrors
 from tasks.tracking.reference import SnippetReference, WalkerState
 from tasks.tracking.rewards import comic_reward, termination_error
@@ -119,6 +142,17 @@ class ClipTrackingEnv(gym.Env):
     """
 
     metadata: ClassVar[dict] = {"render_modes": [], "render_fps": round(1 / CONTROL_TIMESTEP)}
+    episode_attributes: ClassVar[tuple[str, ...]] = (
+        "_episode_active",
+        "_snippet_index",
+        "_time_step",
+        "_time_step_at_reset",
+        "_episode_return",
+        "_episode_length",
+        "_start_time_in_clip",
+        "_body_distance",
+    )
+    """Plain attributes an episode changes, saved by :meth:`get_state` (a subclass lists its own)."""
 
     def __init__(self, config: TrackingConfig | None = None, walker: WalkerModel | None = None) -> None:
         self.config = config = config or TrackingConfig()
@@ -394,6 +428,63 @@ class ClipTrackingEnv(gym.Env):
             "normalized_episode_reward": float(self._episode_return / self._episode_length * length_norm),
             **self._tracking.summary(success=not terminated),
         }
+
+    # Snapshots -------------------------------------------------------------------
+
+    def get_state(self) -> dict[str, Any]:
+        """The environment's complete state as plain data (see :mod:`tasks.env_state`).
+
+        Returns:
+            ``{"class", "snippets", "physics", "rng", "episode", "walker", "tracking"}``: the class
+            name and tracked snippet ids (checked on restore); MuJoCo's state
+            (:func:`tasks.simulation.physics_state`); ``np_random``, which draws starts and action
+            noise (None before the first seeding); every attribute in ``episode_attributes``
+            (the snippet tracked, time steps, return, length, ...); the walker features of the
+            last two steps (``{"state", "previous"}``, each ``{field: array}`` or None before the
+            first reset), which the velocity observables difference; and the episode's tracking
+            error sums (:meth:`tasks.tracking.metrics.EpisodeTrackingErrors.get_state`).
+        """
+        return {
+            "class": state_class(self),
+            "snippets": [str(snippet) for snippet in self.snippets],
+            "physics": physics_state(self._model, self._data),
+            "rng": env_rng_state(self),
+            "episode": attributes_state(self, episode_attributes(type(self))),
+            "walker": {
+                "state": None if self._state is None else self._state.as_arrays(),
+                "previous": None if self._previous is None else self._previous.as_arrays(),
+            },
+            "tracking": self._tracking.get_state(),
+        }
+
+    def set_state(self, state: Mapping[str, Any]) -> None:
+        """Restores a :meth:`get_state` of an environment of the same class and snippets.
+
+        The next steps (and resets) then give bit-identical observations, rewards, terminations
+        and infos to those of the environment the snapshot was taken of.
+
+        Raises:
+            tasks.env_state.EnvStateError: The snapshot is of another class or other snippets,
+                or its variables do not fit.
+        """
+        check_state_class(self, state)
+        check_same("snippets", list(state["snippets"]), [str(snippet) for snippet in self.snippets])
+        names = episode_attributes(type(self))
+        episode = state["episode"]
+        check_attributes(episode, names)
+        if not 0 <= int(episode["_snippet_index"]) < len(self._references):
+            raise EnvStateError(f"the snapshot tracks snippet {episode['_snippet_index']}, which this env lacks")
+        walker = state["walker"]
+        length = int(episode["_episode_length"])
+        restore_physics(self._model, self._data, state["physics"], after_step=length > 0)
+        if self._needs_subtree_velocity and length > 0:
+            mujoco.mj_subtreeVel(self._model, self._data)  # as step() does; a reset leaves them zero
+        restore_attributes(self, episode, names)
+        self._reference = self._references[self._snippet_index]
+        self._state = None if walker["state"] is None else WalkerState.from_arrays(walker["state"])
+        self._previous = None if walker["previous"] is None else WalkerState.from_arrays(walker["previous"])
+        self._tracking.set_state(state["tracking"])
+        restore_env_rng(self, state["rng"])
 
     # Observations ----------------------------------------------------------------
 

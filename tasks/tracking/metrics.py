@@ -111,6 +111,24 @@ class EpisodeTrackingErrors:
         self.steps += 1
         return float(errors[0])
 
+    def get_state(self) -> dict[str, np.ndarray | int | None]:
+        """The accumulators as plain data (copies), for an environment's snapshot."""
+        velocity = self._previous_velocity
+        return {
+            "previous": self._previous.copy(),
+            "previous_velocity": None if velocity is None else velocity.copy(),
+            "steps": self.steps,
+            "sums": self._sums.copy(),
+        }
+
+    def set_state(self, state: Mapping) -> None:
+        """Restores what :meth:`get_state` read (copies its arrays)."""
+        velocity = state["previous_velocity"]
+        self._previous = np.array(state["previous"], dtype=np.float64)
+        self._previous_velocity = None if velocity is None else np.array(velocity, dtype=np.float64)
+        self.steps = int(state["steps"])
+        self._sums = np.array(state["sums"], dtype=np.float64)
+
     @property
     def sums(self) -> dict[str, float]:
         """The summed per-step errors (metres) by metric name."""

@@ -8,7 +8,7 @@ a tracking step only does a handful of vectorised operations over
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -61,6 +61,22 @@ class WalkerState:
             center_of_mass=data.subtree_com[walker.attachment_body].copy(),
             appendages=(relative @ xmat).ravel(),
         )
+
+    def as_arrays(self) -> dict[str, np.ndarray]:
+        """Copies of the features by field name (plain data for a snapshot)."""
+        return {f.name: getattr(self, f.name).copy() for f in fields(self)}
+
+    @classmethod
+    def from_arrays(cls, arrays: dict[str, np.ndarray]) -> WalkerState:
+        """The state :meth:`as_arrays` wrote (copies its arrays).
+
+        Raises:
+            ValueError: Fields are missing or unknown.
+        """
+        names = {f.name for f in fields(cls)}
+        if set(arrays) != names:
+            raise ValueError(f"a walker state has the fields {sorted(names)}, got {sorted(arrays)}")
+        return cls(**{name: np.array(arrays[name], dtype=np.float64) for name in names})
 
 
 class SnippetReference:
