@@ -60,7 +60,11 @@ class FakeStages:
         monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", shipped)
         monkeypatch.setattr(pipeline, "ensure_synthetic_library", lambda progress: tmp_path / "clips.h5")
         monkeypatch.setattr(pipeline, "list_clips", lambda library: {"SYN_stand": 181, "SYN_wave": 196})
-        for name in ("shipped_velocity", "playback", "experts", "dataset", "distill", "transfer", "record", "plots"):
+        self.shipped_experts: list[str] = []  # none ship unless a test says so
+        monkeypatch.setattr(pipeline, "shipped_expert_names", lambda group: list(self.shipped_experts))
+        monkeypatch.setattr(pipeline, "_experts_digest", lambda names: dict.fromkeys(names, "digest"))
+        stages = ("shipped_velocity", "shipped_experts", "playback", "experts", "dataset", "distill", "transfer")
+        for name in (*stages, "record", "plots"):
             monkeypatch.setattr(pipeline, f"{name}_stage", getattr(self, f"_{name}"))
 
     def _call(self, name: str) -> None:
@@ -72,6 +76,10 @@ class FakeStages:
         self._call("shipped_velocity")
         recording.write_text("")
         return shipped_velocity_run(str(recording))
+
+    def _shipped_experts(self, config):
+        self._call("shipped_experts")
+        return shipped_experts_run(self.shipped_experts)
 
     def _playback(self, snippets, library, config):
         self._call("playback")
@@ -270,6 +278,24 @@ def test_job_seconds_counts_the_runs_until_one_finished():
     ]
     assert job_seconds(runs, "a") == 150.0
     assert job_seconds(runs, "b") == 7.0
+
+
+def shipped_experts_run(names: list[str], lengths: tuple[float, ...] = ()) -> dict:
+    """The shipped experts' stage: each expert's rows (length 0.98 unless ``lengths`` says otherwise)."""
+    lengths = lengths or (0.98,) * len(names)
+    rows = [
+        {
+            "expert": name,
+            "snippet": name.split("/")[1],
+            "normalized_reward": 0.7,
+            "normalized_length": length,
+            "success": 0.9,
+            "card_reward": 0.7,
+            "card_length": 0.985,
+        }
+        for name, length in zip(names, lengths, strict=True)
+    ]
+    return {"group": "synthetic-v3", "episodes": 20, "action_noise": 0.1, "rows": rows}
 
 
 def shipped_velocity_run(recording: str = "s.rrd", slope: float = 0.8, mean_return: float = 520.0) -> dict:
@@ -488,3 +514,30 @@ def test_plots_scale_and_label_what_they_show(tmp_path, monkeypatch):
     (axis,) = figures["velocity_control.png"].axes
     labels = " ".join(axis.get_legend_handles_labels()[1])
     assert "training episodes (stochastic)" in labels and "evaluation (deterministic, 5 episodes" in labels
+
+
+def test_shipped_experts_are_shown_and_judged_only_when_they_ship(fakes, tmp_path, capsys):
+    without = run_quickstart(tiny(tmp_path))
+    assert "experts" not in without["shipped"] and fakes.calls["shipped_experts"] == 0
+    assert "experts" not in without["verdicts"]["shipped"]
+    capsys.readouterr()
+    fakes.shipped_experts = ["synthetic-v3/SYN_walk_slow-0-182", "synthetic-v3/SYN_wave-0-196"]
+    summary = run_quickstart(tiny(tmp_path))  # a group that ships now: its stage runs, the others are read
+    assert fakes.calls["shipped_experts"] == 1 and fakes.calls["playback"] == 1
+    verdict = summary["verdicts"]["shipped"]["experts"]
+    assert verdict["verdict"] == "track their snippets" and verdict["experts"] == 2
+    out = capsys.readouterr().out
+    assert "snippet experts (synthetic-v3): track their snippets (mean normalised length 0.980, each needs 0.9)" in out
+    assert out.index("SYN_walk_slow-0-182") < out.index("THE PIPELINE AT SMALL SCALE")
+
+
+@pytest.mark.parametrize(
+    ("lengths", "words"),
+    [((0.95, 0.5), "1 of 2 track their snippets"), ((0.3, 0.5), "do not track their snippets")],
+)
+def test_a_shipped_expert_that_falls_early_is_named_in_the_verdict(lengths, words):
+    names = ["synthetic-v3/SYN_walk_slow-0-182", "synthetic-v3/SYN_wave-0-196"]
+    summary = fabricated_summary(shipped=shipped_velocity_run())
+    summary["shipped"]["experts"] = shipped_experts_run(names, lengths)
+    verdict = summary_verdicts(summary)["shipped"]["experts"]
+    assert verdict["verdict"] == words and "SYN_wave-0-196" in verdict["not_tracking"]

@@ -34,6 +34,8 @@ class QuickstartConfig:
         demo_speeds: The speeds (m/s) its demonstration commands in order, one command period each.
         skill_episodes: Deterministic episodes of the shipped policy's evaluation (times ``scale``).
         skill_steps: Step limit of those episodes and of the demonstration (1000 steps = 30 s).
+        shipped_experts: The group of shipped snippet experts shown tracking their snippets (``skill_episodes``
+            episodes each, the paper's protocol); skipped when no such group ships.
         episodes_per_snippet: Playback episodes rolled per snippet.
         expert_snippets: Snippets that get an expert.
         expert_steps: Environment steps per expert.
@@ -63,6 +65,7 @@ class QuickstartConfig:
     demo_speeds: tuple[float, ...] = (0.4, 0.8, 1.2)
     skill_episodes: int = 20
     skill_steps: int = 1000
+    shipped_experts: str = "synthetic-v3"
     episodes_per_snippet: int = 3
     expert_snippets: tuple[str, ...] = ("SYN_wave-0-196", "SYN_walk_slow-0-182", "SYN_squat-0-155")
     expert_steps: int = 16_384

@@ -15,7 +15,7 @@ from mocap_hierarchy.quickstart.config import MODE_LABELS, NO_PRIOR, OWN_DECODER
 from mocap_hierarchy.quickstart.plots import plots_stage
 from mocap_hierarchy.quickstart.records import STAGES_DIR, RunLog, StageRunner, settings_digest
 from mocap_hierarchy.quickstart.report import print_summary
-from mocap_hierarchy.quickstart.shipped import shipped_velocity_stage
+from mocap_hierarchy.quickstart.shipped import shipped_expert_names, shipped_experts_stage, shipped_velocity_stage
 from mocap_hierarchy.quickstart.stages import (
     dataset_stage,
     distill_stage,
@@ -76,6 +76,15 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
         functools.partial(shipped_velocity_stage, out / "shipped_velocity_control.rrd", config),
         outputs=lambda result: [result["recording"]],
     )
+    shipped = {"velocity_control": shipped_velocity}
+    experts_shipped = shipped_expert_names(config.shipped_experts)
+    if experts_shipped:
+        shipped["experts"] = stages.run(
+            "shipped_experts",
+            "shipped experts",
+            {**pick("shipped_experts", "skill_episodes", "scale", "seed"), "experts": _experts_digest(experts_shipped)},
+            functools.partial(shipped_experts_stage, config),
+        )
     playback = stages.run(
         "playback",
         "playback",
@@ -146,7 +155,7 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
     )
     return {
         "config": settings,
-        "shipped": {"velocity_control": shipped_velocity},
+        "shipped": shipped,
         "clip_file": str(library),
         "playback": playback["rows"],
         "env_steps_per_second": playback["env_steps_per_second"],
@@ -159,6 +168,13 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
         "recordings": recordings,
         "plots": plots,
     }
+
+
+def _experts_digest(names: list[str]) -> dict[str, str]:
+    """The SHA-256 of each shipped expert's weights (new experts rerun the stage)."""
+    from distill.experts.shipped import resolve_experts
+
+    return {name: file_sha256(min(resolve_experts(name).rglob("*.safetensors"))) for name in names}
 
 
 def _policy_digest(config: QuickstartConfig) -> str:

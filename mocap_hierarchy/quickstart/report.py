@@ -15,6 +15,8 @@ def print_summary(summary: dict) -> None:
     if shipped:
         print("\nSHIPPED SKILLS (trained far longer than this run; loaded by name, nothing downloaded)")
         _print_shipped_velocity(shipped["velocity_control"])
+        if "experts" in shipped:
+            _print_shipped_experts(shipped["experts"])
         print("\nTHE PIPELINE AT SMALL SCALE (every stage runs and learns; budgets far below the shipped skills')")
     playback = {row["snippet"]: row for row in summary["playback"]}
     print(
@@ -87,6 +89,12 @@ def print_summary(summary: dict) -> None:
             f"{velocity['speed_slope']:.2f}, needs {velocity['follows_from_slope']:g}; reward per step "
             f"{velocity['reward_per_step']:.3f}, standing still {velocity['still_reward_per_step']:.3f})"
         )
+        experts = verdicts["shipped"].get("experts")
+        if experts:
+            print(
+                f"  snippet experts ({experts['group']}): {experts['verdict']} (mean normalised length "
+                f"{experts['mean_length']:.3f}, each needs {experts['tracks_from_length']:g})"
+            )
     print("\nverdicts, the pipeline at small scale:" if "shipped" in verdicts else "\nverdicts:")
     groups: dict[str, list[str]] = {}
     for snippet, verdict in verdicts["experts"].items():
@@ -122,6 +130,21 @@ def print_summary(summary: dict) -> None:
     print(f"plots: {', '.join(summary['plots'])}")
     print(f"tracking environment: {summary['env_steps_per_second']:.0f} env steps/s (one process)")
     print(_time_line(summary))
+
+
+def _print_shipped_experts(run: dict) -> None:
+    """The shipped experts' tracking, beside their cards' figures."""
+    print(
+        f"snippet experts, {run['group']}: {run['episodes']} episodes each from random frames, action noise "
+        f"{run['action_noise']:g} (the paper's protocol; their cards: 1000 episodes)"
+    )
+    print(f"  {'snippet':<26}{'reward':>8}{'length':>8}{'success':>9}{'card reward':>13}{'card length':>13}")
+    for row in run["rows"]:
+        card = [f"{row[key]:.3f}" if row.get(key) is not None else "-" for key in ("card_reward", "card_length")]
+        print(
+            f"  {row['snippet']:<26}{row['normalized_reward']:>8.3f}{row['normalized_length']:>8.3f}"
+            f"{row.get('success', float('nan')):>9.2f}{card[0]:>13}{card[1]:>13}"
+        )
 
 
 def _print_shipped_velocity(run: dict) -> None:

@@ -56,6 +56,53 @@ def shipped_velocity_stage(recording: Path, config: QuickstartConfig) -> dict[st
     }
 
 
+TRACKS_LENGTH = 0.9
+"""Normalised episode length from which an expert counts as tracking its snippet (1: to the end every time)."""
+
+
+def shipped_expert_names(group: str) -> list[str]:
+    """The shipped experts of ``group`` (``synthetic-v3/SNIPPET``), sorted; empty when the group does not ship."""
+    from distill.experts.shipped import shipped_experts
+
+    return [name for name in shipped_experts() if name.split("/", 1)[0] == group]
+
+
+def shipped_experts_stage(config: QuickstartConfig) -> dict[str, Any]:
+    """The shipped snippet experts of ``config.shipped_experts`` tracking their snippets.
+
+    The paper's protocol at a smaller size: ``config.skill_episodes`` episodes per expert (times ``scale``)
+    from random frames, with the experts' action noise of 0.1; each expert's card holds the same figures
+    over 1000 episodes (``card_reward``, ``card_length``).
+    """
+    from distill.experts.config import EvaluationConfig
+    from distill.experts.evaluation import evaluate_policy
+    from distill.experts.loading import load_expert
+    from tasks.walker import build_walker
+
+    names = shipped_expert_names(config.shipped_experts)
+    episodes = max(4, round(config.skill_episodes * config.scale))
+    evaluation = EvaluationConfig(episodes=episodes, n_envs=min(10, episodes), seed=config.seed + 3000)
+    print(f"\nshipped experts {config.shipped_experts}: {len(names)} experts, {episodes} episodes each")
+    walker = build_walker()
+    rows = []
+    for name in names:
+        expert = load_expert(name)
+        snippet = name.split("/", 1)[1]
+        result = evaluate_policy(expert, snippet, evaluation, walker=walker, progress=True)
+        scores = (expert.spec.provenance.get("model_card") or {}).get("scores", {})
+        rows.append(
+            {
+                "expert": name,
+                "snippet": snippet,
+                **result.summary(),
+                "card_reward": scores.get("normalized_reward"),
+                "card_length": scores.get("normalized_length"),
+            }
+        )
+    noise = evaluation.action_noise
+    return {"group": config.shipped_experts, "episodes": episodes, "action_noise": noise, "rows": rows}
+
+
 def _demo_steps(config: QuickstartConfig) -> int:
     """Control steps of the demonstration: a command period of the policy's task per speed, at most ``skill_steps``."""
     from hierarchy.task_policy import load_task_policy

@@ -6,6 +6,7 @@ import math
 from typing import Any
 
 from mocap_hierarchy.quickstart.config import EPISODE_LIMIT
+from mocap_hierarchy.quickstart.shipped import TRACKS_LENGTH
 
 FOLLOWS_REWARD = 0.5
 """Mean velocity-control reward per step from which a policy counted as following the command, in
@@ -42,7 +43,8 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
       evaluation; how its return compares with the joint-target baseline's, and
       whether its training return rose (``learning``);
     - ``shipped``: the same velocity-control rule for the shipped policy (``velocity_control``),
-      in summaries that have the shipped-skills part.
+      in summaries that have the shipped-skills part; and, when snippet experts ship, whether they
+      track their snippets (``experts``: normalised length at least :data:`TRACKS_LENGTH` each).
 
     The first three judge the pipeline run at small scale; ``shipped`` judges skills trained far longer.
     """
@@ -54,7 +56,32 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
     shipped = summary.get("shipped", {})
     if "velocity_control" in shipped:
         verdicts["shipped"] = {"velocity_control": _shipped_velocity_verdict(shipped["velocity_control"])}
+        if "experts" in shipped:
+            verdicts["shipped"]["experts"] = _shipped_experts_verdict(shipped["experts"])
     return verdicts
+
+
+def _shipped_experts_verdict(run: dict) -> dict[str, Any]:
+    """The shipped experts: how many track their snippets (normalised length at least :data:`TRACKS_LENGTH`)."""
+    tracking = [row["snippet"] for row in run["rows"] if row["normalized_length"] >= TRACKS_LENGTH]
+    others = [row["snippet"] for row in run["rows"] if row["snippet"] not in tracking]
+    if not others:
+        verdict = "track their snippets"
+    elif tracking:
+        verdict = f"{len(tracking)} of {len(run['rows'])} track their snippets"
+    else:
+        verdict = "do not track their snippets"
+    lengths = [row["normalized_length"] for row in run["rows"]]
+    return {
+        "verdict": verdict,
+        "group": run["group"],
+        "experts": len(run["rows"]),
+        "tracking": tracking,
+        "not_tracking": others,
+        "tracks_from_length": TRACKS_LENGTH,
+        "mean_length": sum(lengths) / len(lengths) if lengths else float("nan"),
+        "episodes": run["episodes"],
+    }
 
 
 def _expert_verdicts(playback_rows: list[dict], expert_rows: list[dict]) -> dict[str, dict[str, Any]]:

@@ -319,3 +319,19 @@ def test_every_shipped_expert_loads_with_a_card(name, clip_library):
     observation, _ = env.reset(seed=0)
     actions = policy.mean_actions({k: v[None] for k, v in observation.items()})
     assert actions.shape == (1, policy.spec.action_size) and np.isfinite(actions).all()
+
+
+def test_the_quickstart_evaluates_every_expert_of_a_shipped_group_beside_its_card(ship, snippet, clip_library):
+    from mocap_hierarchy.quickstart import QuickstartConfig
+    from mocap_hierarchy.quickstart.shipped import shipped_expert_names, shipped_experts_stage
+
+    assert shipped_expert_names(GROUP) == sorted([f"{GROUP}/{OTHER}", f"{GROUP}/{snippet}"])
+    assert shipped_expert_names("not-shipped") == []
+    result = shipped_experts_stage(QuickstartConfig(shipped_experts=GROUP, skill_episodes=4))
+    assert result["episodes"] == 4 and result["action_noise"] == 0.1
+    rows = {row["snippet"]: row for row in result["rows"]}
+    assert set(rows) == {OTHER, snippet}
+    assert (
+        0 < rows[snippet]["normalized_length"] <= 1
+        and rows[snippet]["card_reward"] == CARD["scores"]["normalized_reward"]
+    )
