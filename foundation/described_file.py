@@ -174,15 +174,15 @@ def check_layout(
             f"holds unknown tensors {unexpected[:5]}" if unexpected else "",
         ]
         raise error(
-            f"{where}: its weights do not match the {what} its description declares: "
+            f"{where}: its weights do not fit the architecture its description declares ({what}): "
             + " and ".join(part for part in parts if part)
         )
     for name, shape in expected.items():
         tensor = found[name]
         if tuple(tensor.shape) != shape:
             raise error(
-                f"{where}: tensor {name} has shape {tuple(tensor.shape)}, but the {what} its description declares "
-                f"needs {shape}"
+                f"{where}: its weights do not fit the architecture its description declares ({what}): tensor "
+                f"{name} has shape {tuple(tensor.shape)}, the architecture needs {shape}"
             )
         if not tensor.is_floating_point():
             raise error(f"{where}: tensor {name} is {tensor.dtype}, not floating-point weights")

@@ -5,6 +5,7 @@ SB3 is imported inside the functions, so importing this module stays cheap.
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import zipfile
@@ -36,10 +37,7 @@ def save_sb3(
     Raises:
         TrainingDiverged: A weight or statistic is not finite; nothing was written.
     """
-    problem = non_finite_state(model, normaliser)
-    if problem is not None:
-        kept = f"nothing was written to {model_path.parent} (the files there are the last good ones)"
-        raise TrainingDiverged(f"refusing to save {model_path.name}", model.num_timesteps, *problem, kept)
+    refuse_non_finite(model, normaliser, model_path)
     with atomic_path(model_path) as temporary:
         zipped = temporary.with_suffix(".zip")  # SB3 appends .zip to names without it
         try:
@@ -49,6 +47,18 @@ def save_sb3(
             zipped.unlink(missing_ok=True)
     with atomic_path(normaliser_path) as temporary:
         normaliser.save(str(temporary))
+
+
+def refuse_non_finite(model: Any, normaliser: Any, path: Path) -> None:
+    """Raises before ``path`` is written from an SB3 model whose weights or normaliser hold NaN or an infinity.
+
+    Raises:
+        TrainingDiverged: A weight or statistic is not finite (:func:`non_finite_state`).
+    """
+    problem = non_finite_state(model, normaliser)
+    if problem is not None:
+        kept = f"nothing was written to {path.parent} (the files there are the last good ones)"
+        raise TrainingDiverged(f"refusing to save {path.name}", model.num_timesteps, *problem, kept)
 
 
 def non_finite_state(model: Any, normaliser: Any = None) -> tuple[str, float] | None:
@@ -215,17 +225,21 @@ def resize_rollouts(model: Any, steps_per_env: int) -> None:
     )
 
 
-def resumable_logger(folder: str | Path, formats: list[str], resumed: bool) -> Any:
+def resumable_logger(folder: str | Path, formats: list[str], resumed: bool, steps: int | None = None) -> Any:
     """SB3's logger writing ``folder/progress.csv`` (and the other ``formats``); a resumed run keeps the rows there.
 
     SB3 truncates ``progress.csv`` when it opens it, so a resumed run would lose the
     curve of the steps before its checkpoint; with ``resumed`` this logger starts from
-    those rows (a new run starts an empty file, as SB3 does).
+    those rows (a new run starts an empty file, as SB3 does). With ``steps`` (the
+    checkpoint's), the rows of later steps, which a killed run wrote after its checkpoint
+    and its rerun writes again, are left out.
     """
     from stable_baselines3.common.logger import CSVOutputFormat, configure
 
     progress = Path(folder) / "progress.csv"
     earlier = progress.read_text() if resumed and progress.is_file() else ""
+    if earlier.strip() and steps is not None:
+        earlier = _rows_up_to(earlier, steps)
     logger = configure(str(folder), formats)
     if earlier.strip():
         for output in logger.output_formats:
@@ -234,3 +248,22 @@ def resumable_logger(folder: str | Path, formats: list[str], resumed: bool) -> A
                 output.file.flush()
                 output.keys = earlier.splitlines()[0].split(output.separator)
     return logger
+
+
+def _rows_up_to(text: str, steps: int, column: str = "time/total_timesteps") -> str:
+    """``progress.csv``'s text without the rows logged after ``steps`` (all rows when it has no such column)."""
+    lines = text.splitlines(keepends=True)
+    header = lines[0].rstrip("\r\n").split(",")
+    if column not in header:
+        return text
+    index = header.index(column)
+    kept = [lines[0]]
+    for line in lines[1:]:
+        cells = next(csv.reader([line]), [])
+        try:
+            logged = float(cells[index])
+        except (IndexError, ValueError):
+            logged = None
+        if logged is None or logged <= steps:
+            kept.append(line)
+    return "".join(kept)

@@ -2,7 +2,9 @@
 
 :class:`AdaptiveStepSize` makes the ``adaptive`` rule of :class:`foundation.ppo.PpoConfig` act on a
 model built by :func:`foundation.sb3.build_ppo`; :class:`StopOnDivergence` ends a run whose update
-made its losses, weights or normaliser NaN or infinite, before anything is saved from them.
+made its losses, weights or normaliser NaN or infinite, before anything is saved from them;
+:class:`UpdateBoundaries` keeps the run's state at every update boundary
+(:class:`foundation.sb3_resume.Boundary`), writes it when a checkpoint is due, and at once on a stop.
 """
 
 from __future__ import annotations
@@ -15,7 +17,9 @@ from typing import Any
 from stable_baselines3.common.callbacks import BaseCallback
 
 from foundation.divergence import TrainingDiverged, first_non_finite
+from foundation.interrupts import StopFlag
 from foundation.sb3 import StepSize, non_finite_state
+from foundation.sb3_resume import Boundary, rewind
 
 
 class AdaptiveStepSize(BaseCallback):
@@ -96,6 +100,67 @@ class StopOnDivergence(BaseCallback):
     def _raise_if(self, model: Any, problem: tuple[str, float] | None, cause: BaseException | None = None) -> None:
         if problem is not None:
             raise TrainingDiverged(self.what, model.num_timesteps, *problem, self.kept()) from cause
+
+
+class UpdateBoundaries(BaseCallback):
+    """Keeps the run at every update boundary; writes it when a checkpoint is due, and at once on a stop request.
+
+    Where SB3 starts a rollout (after the update before it, before the other callbacks' rollout-start
+    work: list it right after :class:`StopOnDivergence`), it asks ``due`` whether a checkpoint is due
+    at this step (``due`` moves the next one on), then takes the boundary and, when due, has ``save``
+    write it. On Ctrl-C or ``SIGTERM`` it does not wait for the rollout to end: the model goes back
+    to the last boundary (:func:`foundation.sb3_resume.rewind`), ``save`` writes it and PPO's loop
+    ends. The rerun collects that rollout again, drawing the same numbers.
+
+    Args:
+        take: Takes the boundary of the model as it is now (:func:`foundation.sb3_resume.take_boundary`
+            with the caller's run state and environments).
+        save: Writes a boundary; the model is at that boundary when it is called.
+        due: Whether a checkpoint is due at a boundary of this many steps.
+        stop: The stop flag of :func:`foundation.interrupts.stop_requests`.
+
+    Attributes:
+        boundary: The last boundary taken (None before the first rollout).
+        saved_on_stop: Whether a stop request was answered with a written boundary.
+    """
+
+    def __init__(
+        self,
+        take: Callable[[], Boundary],
+        save: Callable[[Boundary], None],
+        due: Callable[[int], bool],
+        stop: StopFlag,
+    ) -> None:
+        super().__init__()
+        self.take, self.save, self.due, self.stop = take, save, due, stop
+        self.boundary: Boundary | None = None
+        self.saved_on_stop = False
+
+    def _on_rollout_start(self) -> None:
+        due = self.due(self.model.num_timesteps)  # first: the boundary keeps the next checkpoint's step
+        self.boundary = self.take()
+        if due:
+            self.save(self.boundary)
+
+    def _on_step(self) -> bool:
+        if not self.stop.requested:
+            return True
+        assert self.boundary is not None  # a step follows a rollout start
+        rewind(self.model, self.boundary)
+        self.save(self.boundary)
+        self.saved_on_stop = True
+        return False
+
+    def save_after_stop(self) -> None:
+        """Writes the boundary the model is at when a stop arrived after the last rollout (during an update).
+
+        Call it when ``learn`` has returned with a stop requested; it does nothing when the stop was
+        answered mid-rollout already.
+        """
+        if not self.saved_on_stop:
+            self.boundary = self.take()
+            self.save(self.boundary)
+            self.saved_on_stop = True
 
 
 def _refused_distribution(error: ValueError) -> bool:

@@ -340,8 +340,8 @@ def register_standardiser(
     for name, value in (("observation_mean", mean), ("observation_std", std)):
         if value.shape != (size,):
             raise error(f"{name} has {value.numel()} values; the observations have {size}")
-    if not torch.all(std > 0):
-        raise error("observation_std must be positive")
+    if not (torch.all(std > 0) and torch.isfinite(std).all() and torch.isfinite(mean).all()):
+        raise error("observation_std must be positive, and both statistics finite float32 numbers")
     module.register_buffer("observation_mean", mean)
     module.register_buffer("observation_std", std)
 
@@ -429,4 +429,7 @@ def standardiser_tensors(
             )
     if not bool((tensors["observation_std"] > 0).all()):
         raise error(f"{where}: tensor observation_std holds values that are not positive")
+    for name in ("observation_mean", "observation_std"):
+        if not bool((tensors[name].double().abs() <= FLOAT32_MAX).all()):
+            raise error(f"{where}: tensor {name} holds values beyond float32's range")
     return tensors["observation_mean"], tensors["observation_std"]

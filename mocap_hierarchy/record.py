@@ -60,9 +60,9 @@ def file_format(path: Path) -> str:
             description = json.loads((f.metadata() or {}).get(METADATA_KEY, "{}"))
     except Exception as error:
         raise ValueError(f"{path} is not a mocap-hierarchy policy file ({error})") from None
-    found = description.get("format")
-    if not found:
-        raise ValueError(f"{path} is a safetensors file without a mocap-hierarchy description")
+    found = description.get("format") if isinstance(description, dict) else None
+    if not found or not isinstance(found, str):
+        raise ValueError(f"{path} is a safetensors file without a mocap-hierarchy description (or a damaged one)")
     return found.removeprefix("mocap_hierarchy.")
 
 

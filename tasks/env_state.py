@@ -314,3 +314,22 @@ class StateWrapper(gym.Wrapper):
     def set_state(self, state: Mapping[str, Any]) -> None:
         """:func:`set_env_state` into the wrapped chain."""
         set_env_state(self.env, state)
+
+    def get_state_or_problem(self) -> dict[str, Any]:
+        """``{"state": get_state()}``, or ``{"problem": message}`` where the chain cannot be snapshotted.
+
+        For ``env_method`` in a ``SubprocVecEnv``: an error raised in a worker ends the worker, a
+        problem returned does not (:mod:`tasks.vec_env_state` calls these two).
+        """
+        try:
+            return {"state": self.get_state()}
+        except EnvStateError as problem:
+            return {"problem": str(problem)}
+
+    def set_state_or_problem(self, state: Mapping[str, Any]) -> str | None:
+        """:meth:`set_state`; the problem's message where the snapshot does not fit (None when restored)."""
+        try:
+            self.set_state(state)
+        except EnvStateError as problem:
+            return str(problem)
+        return None

@@ -37,3 +37,14 @@ def walker():
     from tasks.walker import build_walker
 
     return build_walker()
+
+
+@pytest.fixture
+def one_torch_thread():
+    """Torch on one CPU thread for the test (the fastest for tiny networks on a busy machine), then as before."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)

@@ -28,6 +28,9 @@ from pathlib import Path
 IGNORED_OUTPUTS = ("events.out.tfevents", "progress.csv", "timings", ".log")
 """Files whose bytes depend on wall time (TensorBoard, SB3's CSV log): not compared."""
 
+BYTE_FOR_BYTE = "byte for byte"
+"""How a trial's outputs equal an uninterrupted run's, unless it says otherwise (the kill table's column)."""
+
 
 def command(args: Sequence[str]) -> list[str]:
     """The command line of ``mocap-hierarchy ARGS`` in this interpreter."""
@@ -157,10 +160,13 @@ class KillReport:
     killed_log: str = ""
     log: str = ""
 
-    def row(self, identical: bool, why_not: str = "") -> str:
-        """A line of the kill table (``identical``: the outputs equal an uninterrupted run's byte for byte;
-        otherwise ``why_not`` says what differs)."""
-        same = "yes, byte for byte" if identical else f"no: {why_not}"
+    def row(self, identical: bool, why_not: str = "", how: str = BYTE_FOR_BYTE) -> str:
+        """A line of the kill table.
+
+        Its column "same as uninterrupted" says ``yes, HOW`` when the test asserted the outputs equal an
+        uninterrupted run's (``identical``), else ``no: WHY_NOT``.
+        """
+        same = f"yes, {how}" if identical else f"no: {why_not}"
         moments = ", ".join(f"{d:g}" for d in self.delays)
         return (
             f"| {self.job} | {self.kills} of {len(self.delays)} (at {moments} s; seed {self.seed}) | {self.runs} | "
@@ -168,20 +174,22 @@ class KillReport:
         )
 
 
-def publish(report: KillReport, identical: bool = False, why_not: str = "") -> None:
+def publish(report: KillReport, identical: bool = False, why_not: str = "", how: str = BYTE_FOR_BYTE) -> None:
     """Appends the report's table row to ``$KILL_REPORT`` when it is set (call it once every check passed).
 
     Args:
         report: The trial's report.
-        identical: The test asserted the outputs equal an uninterrupted run's byte for byte.
+        identical: The test asserted the outputs equal an uninterrupted run's (``how``: byte for byte unless
+            it says what is compared otherwise).
         why_not: Otherwise, what differs and why (required then).
+        how: How they are equal, when not every file byte for byte.
     """
     if not identical and not why_not:
-        raise ValueError("a trial whose outputs are not compared byte for byte must say why")
+        raise ValueError("a trial whose outputs are not compared with an uninterrupted run's must say why")
     target = os.environ.get("KILL_REPORT")
     if target:
         with open(target, "a") as handle:
-            handle.write(report.row(identical, why_not) + "\n")
+            handle.write(report.row(identical, why_not, how) + "\n")
 
 
 def kill_and_resume(

@@ -614,6 +614,49 @@ def checkpoint_target() -> Target:
     )
 
 
+# The multi-clip policy ---------------------------------------------------------------------------
+
+
+def _build_multi_clip_policy(folder: Path) -> Path:
+    import torch
+
+    from distill.npmp.config import NpmpConfig
+    from distill.npmp.model import NpmpPolicy, NpmpSpec
+
+    torch.manual_seed(8)
+    encoder = {"walker/joints_pos": 56, "walker/reference_rel_joints": 56}
+    config = NpmpConfig(latent_size=6, encoder_layers=(16,), decoder_layers=(16, 16))
+    spec = NpmpSpec(dataclasses.asdict(config), encoder, dict(OBSERVATIONS), (1, 2))
+    sizes = sum(encoder.values()), sum(OBSERVATIONS.values())
+    policy = NpmpPolicy(spec, np.zeros(sizes[0]), np.ones(sizes[0]), np.zeros(sizes[1]), np.ones(sizes[1]))
+    return policy.save(folder / "policy.safetensors")
+
+
+def _judge_multi_clip_policy(policy: Any) -> str:
+    for name, value in policy.state_dict().items():
+        require_finite(name, value)
+    latent = policy.config.latent_size
+    encoder, decoder = policy.encoder_mean.numpy()[None], policy.decoder_mean.numpy()[None]
+    actions, z = policy.act(encoder, decoder, np.zeros((1, latent), np.float32))
+    require_finite("actions", actions, (1, policy.spec.action_size))
+    require_finite("z", z, (1, latent))
+    return fingerprint(policy.state_dict(), behaviour(policy.spec))
+
+
+def multi_clip_policy_target() -> Target:
+    """``load_policy`` (``record``, ``decoder fit-prior``) on a multi-clip policy file."""
+    from distill.npmp.model import PolicyFileError, load_policy
+
+    return Target(
+        "multi-clip policy (`load_policy`)",
+        _build_multi_clip_policy,
+        load_policy,
+        _judge_multi_clip_policy,
+        (PolicyFileError,),
+        lambda artifact, rng: described_cases("", artifact, rng),
+    )
+
+
 # Motion GPT ---------------------------------------------------------------------------------------
 
 
@@ -813,6 +856,10 @@ def _special(name: str, kind: bytes, target: str = "") -> tuple[tarfile.TarInfo,
     return info, None
 
 
+def _write(path: Path, content: bytes) -> None:
+    path.write_bytes(content)
+
+
 def _huge_member(mode: str) -> bytes:
     """An archive whose last member's header declares 2**40 bytes (base-256 size field, checksum redone)."""
     import gzip
@@ -884,7 +931,7 @@ def archive_target(mode: str = "w:gz") -> Target:
             crafted("hard link to /etc/passwd", [_special("pkg/passwd", tarfile.LNKTYPE, "/etc/passwd")]),
             crafted("character device", [_special("pkg/null", tarfile.CHRTYPE)]),
             crafted("fifo", [_special("pkg/fifo", tarfile.FIFOTYPE)]),
-            Case("oversize", "a member declaring 2**40 bytes", lambda a: a.write_bytes(_huge_member(mode))),
+            Case("oversize", "a member declaring 2**40 bytes", lambda a: _write(a, _huge_member(mode))),
         ]
         regions = {"archive": (0, size)}
         return cases + truncations("", regions, rng, 40) + byte_flips("", regions, rng, 120)
@@ -911,6 +958,7 @@ def all_targets() -> list[Target]:
         expert_target(),
         mocapact_expert_target(),
         checkpoint_target(),
+        multi_clip_policy_target(),
         gpt_target(),
         rollout_target(),
         clip_target(),

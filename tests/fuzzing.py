@@ -146,7 +146,7 @@ class Report:
 
     def counts(self) -> dict[str, int]:
         """Cases per outcome (every outcome listed, zero included)."""
-        counts = dict.fromkeys(OUTCOMES, 0)
+        counts: dict[str, int] = {outcome: 0 for outcome in OUTCOMES}
         for result in self.results:
             counts[result.outcome] += 1
         return counts

@@ -3,9 +3,10 @@
 :func:`distill.experts.training.train_expert` lists them in the order they act at every step:
 :class:`EpisodeStats` (the training episodes' normalised reward and length, the progress bar),
 :class:`PeriodicEvaluation` (the paper's evaluation every ``eval_every`` steps, the kept expert,
-early stopping), :class:`Checkpoints` (the resumable state every ``checkpoint_every`` steps and
-on Ctrl-C), and before every rollout :class:`FixedNoise` (the action noise schedule). They share
-one :class:`RunState`, which is what a checkpoint saves.
+early stopping), and before every rollout :class:`FixedNoise` (the action noise schedule). They share
+one :class:`RunState`, which a checkpoint saves; the checkpoints themselves, at update boundaries every
+``checkpoint_every`` steps and at once on Ctrl-C, are :class:`foundation.sb3_callbacks.UpdateBoundaries`'s,
+due when :meth:`RunState.checkpoint_due` says.
 """
 
 from __future__ import annotations
@@ -21,7 +22,6 @@ from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from tqdm.auto import tqdm
 
 from distill.experts.config import ExpertConfig
-from foundation.interrupts import StopFlag
 from foundation.schedule import Schedule
 
 
@@ -38,7 +38,8 @@ class RunState:
         next_checkpoint: The step of the next checkpoint.
         wall_seconds_before: Training wall time of earlier processes of this run.
         learning_rate: The adaptive rule's step size when saved (None under a fixed schedule).
-        recent: The last training episodes' (normalised reward, normalised length); not saved.
+        recent: The last training episodes' (normalised reward, normalised length); in the resume file
+            (:meth:`snapshot`), not in ``state.json``.
     """
 
     evaluations: list[dict] = field(default_factory=list)
@@ -70,6 +71,24 @@ class RunState:
         """The state to save at ``steps``, after ``wall_seconds`` of training in all."""
         saved = {k: v for k, v in asdict(self).items() if k != "recent" and not (k == "learning_rate" and v is None)}
         return {**saved, "wall_seconds_before": wall_seconds, "steps": int(steps)}
+
+    def snapshot(self) -> dict[str, Any]:
+        """Every field as plain data, ``recent`` included (a checkpoint's resume file keeps it)."""
+        return asdict(self)
+
+    @classmethod
+    def from_snapshot(cls, values: dict[str, Any]) -> RunState:
+        """The state :meth:`snapshot` read."""
+        known = {k: v for k, v in values.items() if k in cls.__dataclass_fields__}
+        return cls(**{**known, "recent": [(float(r), float(n)) for r, n in known.get("recent", [])]})
+
+    def checkpoint_due(self, steps: int, every: int) -> bool:
+        """Whether a checkpoint is due at an update boundary of ``steps``; if so, the next one moves past it."""
+        if steps < self.next_checkpoint:
+            return False
+        while self.next_checkpoint <= steps:
+            self.next_checkpoint += every
+        return True
 
 
 def keep_training(state: RunState, length: float, reward: float, steps: int, config: ExpertConfig) -> bool:
@@ -136,23 +155,6 @@ class PeriodicEvaluation(BaseCallback):
         self.state.next_eval += self.every
         if not self.evaluate(self.model, self.num_timesteps):
             self.stopped_early = True
-            return False
-        return True
-
-
-class Checkpoints(BaseCallback):
-    """Calls ``save(model)`` every ``every`` steps, and at once when a stop is requested (then ends training)."""
-
-    def __init__(self, state: RunState, every: int, save: Callable[[Any], None], stop: StopFlag) -> None:
-        super().__init__()
-        self.state, self.every, self.save, self.stop = state, every, save, stop
-
-    def _on_step(self) -> bool:
-        if self.num_timesteps >= self.state.next_checkpoint:
-            self.state.next_checkpoint += self.every
-            self.save(self.model)
-        if self.stop.requested:  # Ctrl-C or SIGTERM: save where we are and leave PPO's loop
-            self.save(self.model)
             return False
         return True
 

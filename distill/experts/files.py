@@ -66,6 +66,11 @@ class ResumableFiles:
         return self.directory / "vecnormalize.pkl"
 
     @property
+    def resume(self) -> Path:
+        """Everything else a run continues exactly from (:mod:`foundation.sb3_resume`; none before 2026-11-27)."""
+        return self.directory / "resume.pt"
+
+    @property
     def state(self) -> Path:
         """The training-callback state, written last: its presence marks a complete set."""
         return self.directory / "state.json"

@@ -276,11 +276,11 @@ class ExpertPolicy(nn.Module):
         policy = cls(spec, statistics["obs_mean"], statistics["obs_var"])
         weights = {k.removeprefix("net."): v.float() for k, v in tensors.items() if k.startswith("net.")}
         policy.load_state_dict(weights)  # float16 weights widen to float32 here
-        output = policy.act({k: v[None] for k, v in statistics["obs_mean"].items()})
-        if not all(np.all(np.isfinite(v)) for v in (output.mean_actions, output.values)):
+        output = policy.act({k: v[None] for k, v in statistics["obs_mean"].items()}, np.random.default_rng(0))
+        if not all(np.all(np.isfinite(v)) for v in (output.actions, output.log_probs, output.values)):
             raise ExpertFilesError(
-                f"{where}: the expert computes NaN or infinite actions or values at its mean observation: its weights "
-                f"are damaged{EXPERT_REMEDY}"
+                f"{where}: the expert computes NaN or infinite actions, log-probabilities or values at its mean "
+                f"observation: its weights or action_std ({spec.action_std:g}) are damaged{EXPERT_REMEDY}"
             )
         return policy
 

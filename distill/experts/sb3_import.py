@@ -79,8 +79,8 @@ def read_sb3_zip(path: Path) -> tuple[dict[str, Any], dict[str, torch.Tensor]]:
         raise
     except Exception as error:  # zipfile raises BadZipFile, KeyError, zlib.error, EOFError, NotImplementedError...
         raise ExpertFilesError(
-            f"{path} is not a readable stable-baselines3 model zip ({type(error).__name__}: {first_line(error)})"
-            f"{SB3_REMEDY}"
+            f"{path} is not a stable-baselines3 model zip, or a damaged one "
+            f"({type(error).__name__}: {first_line(error)}){SB3_REMEDY}"
         ) from None
     data = require_mapping(parse_json(text, f"{path}: data", ExpertFilesError), f"{path}: data", ExpertFilesError)
     try:

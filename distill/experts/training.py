@@ -2,9 +2,12 @@
 
 ``train_expert`` writes the paper's A.1 directory (see :mod:`distill.experts.files`):
 the best model by normalised evaluation reward is kept in ``eval_rsi/model``,
-a resumable checkpoint is written every ``checkpoint_every`` steps, and an
-interrupted run continues from its last checkpoint when started again with
-the same settings. ``done.json`` marks a finished expert, which reruns skip.
+a resumable checkpoint is written at the first update boundary after every
+``checkpoint_every`` steps (and at once on Ctrl-C or ``SIGTERM``: the last
+boundary), and an interrupted run continues from its last checkpoint when
+started again with the same settings, exactly as the uninterrupted run would
+(:mod:`foundation.sb3_resume`). ``done.json`` marks a finished expert, which
+reruns skip.
 """
 
 from __future__ import annotations
@@ -26,7 +29,6 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNorm
 from tqdm.auto import tqdm
 
 from distill.experts.callbacks import (
-    Checkpoints,
     EpisodeStats,
     FixedNoise,
     PeriodicEvaluation,
@@ -45,7 +47,8 @@ from distill.experts.start import start_from_run
 from foundation.atomic import write_json
 from foundation.config_files import config_to_dict
 from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
-from foundation.provenance import provenance
+from foundation.provenance import now, provenance
+from foundation.random_state import unchanged_random_state
 from foundation.resume import SettingsMismatchError, check_same_settings
 from foundation.run_lock import run_lock
 from foundation.sb3 import (
@@ -53,16 +56,27 @@ from foundation.sb3 import (
     StepSize,
     build_ppo,
     load_ppo,
+    refuse_non_finite,
     resize_rollouts,
     resumable_logger,
     save_sb3,
     saved_steps,
 )
-from foundation.sb3_callbacks import AdaptiveStepSize, StopOnDivergence
+from foundation.sb3_callbacks import AdaptiveStepSize, StopOnDivergence, UpdateBoundaries
+from foundation.sb3_resume import (
+    Boundary,
+    EnvSnapshots,
+    read_boundary,
+    restore_boundary,
+    take_boundary,
+    write_boundary,
+)
 from tasks.clips.format import list_clips
 from tasks.clips.snippets import SnippetId, parse_snippet_id
 from tasks.clips.sources import resolve_clip_file
+from tasks.env_state import StateWrapper
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
+from tasks.vec_env_state import vec_env_snapshots
 from tasks.walker import build_walker
 
 ConfigMismatchError = SettingsMismatchError
@@ -90,11 +104,11 @@ class TrainingResult:
     seconds: float
 
 
-def _make_env(tracking: TrackingConfig, seed: int) -> ClipTrackingEnv:
+def _make_env(tracking: TrackingConfig, seed: int) -> StateWrapper:
     ignore_interrupts_in_worker()  # in a SubprocVecEnv worker: Ctrl-C is for the trainer
     env = ClipTrackingEnv(tracking)
     env.reset(seed=seed)
-    return env
+    return StateWrapper(env)  # snapshots through env_method, in worker processes too (tasks.vec_env_state)
 
 
 RESUME_FREE_FIELDS = (
@@ -142,12 +156,21 @@ class ExpertRun:
                 "snippet": self.snippet,
                 "residual_actions": self.config.residual_actions,
                 "action_std": std,
-                "provenance": provenance(trained_steps=int(steps), clips=str(self.clips)),
+                # No date: the file's bytes follow from the run (done.json says when it finished).
+                "provenance": provenance(dated=False, trained_steps=int(steps), clips=str(self.clips)),
             },
         )
 
     def evaluate(self, model: PPO, steps: int) -> bool:
-        """Evaluates, keeps the best model, decides early stopping (False = stop)."""
+        """Evaluates, keeps the best model, decides early stopping (False = stop).
+
+        Training's random generators are left as they were (building the evaluated policy's networks
+        draws from torch's): what training draws next does not depend on the evaluations.
+        """
+        with unchanged_random_state():
+            return self._evaluate(model, steps)
+
+    def _evaluate(self, model: PPO, steps: int) -> bool:
         config, state = self.config, self.state
         venv = model.get_vec_normalize_env()
         assert isinstance(venv, VecNormalize)
@@ -215,15 +238,29 @@ class ExpertRun:
             return f"no checkpoint was written yet (the kept expert, if any, is in {self.expert.root})"
         return f"the last good checkpoint (step {steps}) is kept in {self.expert.checkpoint_dir}"
 
-    def save_checkpoint(self, model: PPO) -> None:
-        """Writes the resumable state (model, normaliser, run state) to the checkpoint, the state file last."""
+    def take_boundary(self, model: PPO, envs: EnvSnapshots) -> Boundary:
+        """The run at the update boundary the model is at: the model's state, the environments', the run state."""
+        return take_boundary(model, self.state.snapshot(), envs)
+
+    def save_checkpoint(self, model: PPO, boundary: Boundary) -> None:
+        """Writes ``boundary`` (the model is at it) to the checkpoint.
+
+        First the resume file (:mod:`foundation.sb3_resume`), which alone decides where a rerun
+        continues: a kill between the files never mixes two checkpoints. Then SB3's model and
+        normaliser, and last ``state.json``, the run state, whose presence marks a checkpoint to resume.
+        Nothing is written from weights or statistics that are not finite.
+        """
         files = self.expert.checkpoint
         venv = model.get_vec_normalize_env()
         assert venv is not None
-        save_sb3(model, venv, files.model, files.normaliser, SAVE_EXCLUDE)
+        refuse_non_finite(model, venv, files.resume)
+        state = RunState.from_snapshot(boundary.run)
         if isinstance(model.lr_schedule, StepSize) and self.config.ppo.schedule == "adaptive":
-            self.state.learning_rate = model.lr_schedule.value
-        write_json(files.state, self.state.to_json(model.num_timesteps, self.wall_seconds()))  # marks the set complete
+            state.learning_rate = boundary.learner["step_size"]
+        wall_seconds = self.wall_seconds()
+        write_boundary(files.resume, boundary.with_run({**state.snapshot(), "wall_seconds_before": wall_seconds}))
+        save_sb3(model, venv, files.model, files.normaliser, SAVE_EXCLUDE)
+        write_json(files.state, state.to_json(boundary.steps, wall_seconds))  # marks the set complete
 
 
 def train_expert(
@@ -294,13 +331,17 @@ def _train(
     if config.torch_threads > 0:
         torch.set_num_threads(config.torch_threads)
     vec_env = training_envs(training_task((name,), clip_file, config), config)
-    model, state, continued = _resume_or_build(expert, vec_env, saved_state, config)
-    model.set_logger(resumable_logger(expert.root, ["csv"], resumed=continued))
+    model, state, continued, boundary = _resume_or_build(expert, vec_env, saved_state, config)
+    resumed_at = boundary.steps if boundary is not None else None
+    model.set_logger(resumable_logger(expert.root, ["csv"], resumed=continued, steps=resumed_at))
 
     run = ExpertRun(name, expert, clip_file, config, state, progress)
+    snapshots = vec_env_snapshots()
+    if boundary is not None:  # last: the random generators go back to the checkpoint's
+        _continue_exactly(expert, model, boundary, snapshots)
     with stop_requests() as stop:
         try:
-            stop_reason = _learn(model, run, stop)
+            stop_reason = _learn(model, run, stop, snapshots)
         finally:
             vec_env.close()
         if stop.requested:
@@ -312,11 +353,20 @@ def _train(
     )
 
 
-def _learn(model: PPO, run: ExpertRun, stop: StopFlag) -> str:
+def _continue_exactly(expert: ExpertDir, model: PPO, boundary: Boundary, envs: EnvSnapshots) -> None:
+    """Puts the checkpoint's boundary into the loaded model and environments; says when episodes start anew."""
+    problem = restore_boundary(model, boundary, envs)
+    if problem is not None:
+        print(f"{expert.root}: the episodes in progress at step {boundary.steps} were not restored ({problem}); "
+              "new episodes start")  # fmt: skip
+
+
+def _learn(model: PPO, run: ExpertRun, stop: StopFlag, snapshots: EnvSnapshots) -> str:
     """The training loop: PPO in stretches of one rollout size up to the budget, then a last evaluation.
 
     Each stretch ends where ``steps_per_update`` changes; the first rollout at or after that step
-    has the new size. Returns why it ended: ``budget``, ``early_stop`` or ``stopped``.
+    has the new size. Checkpoints are written at update boundaries (:class:`UpdateBoundaries`).
+    Returns why it ended: ``budget``, ``early_stop`` or ``stopped``.
     """
     config, state = run.config, run.state
     bar = tqdm(
@@ -324,14 +374,21 @@ def _learn(model: PPO, run: ExpertRun, stop: StopFlag) -> str:
         disable=not run.progress,
     )  # fmt: skip
     evaluation = PeriodicEvaluation(state, config.eval_every, config.eval_at_start, run.evaluate)
-    checkpoints = Checkpoints(state, config.checkpoint_every, run.save_checkpoint, stop)
-    callbacks: list[BaseCallback] = [EpisodeStats(state, bar), evaluation, checkpoints, AdaptiveStepSize()]
+    boundaries = UpdateBoundaries(
+        lambda: run.take_boundary(model, snapshots),
+        lambda boundary: run.save_checkpoint(model, boundary),
+        lambda steps: state.checkpoint_due(steps, config.checkpoint_every),
+        stop,
+    )
+    callbacks: list[BaseCallback] = [EpisodeStats(state, bar), evaluation, AdaptiveStepSize()]
     if config.action_std.changes and not config.learn_action_std:
         callbacks.insert(0, FixedNoise(config.action_std))
     if config.steps_per_update.changes:
         callbacks.append(RolloutSizeLog())
     divergence = StopOnDivergence(f"expert {run.snippet}", run.kept_checkpoint)
-    callbacks.insert(0, divergence)  # first: no callback resets a weight before it is checked
+    # The divergence check first (nothing is kept from an update that went wrong), then the boundary,
+    # before any other callback's rollout-start work (the noise schedule, the adaptive step size).
+    callbacks[:0] = [divergence, boundaries]
     envs = config.resolved_envs()
     try:
         with divergence.watching(model):
@@ -343,6 +400,7 @@ def _learn(model: PPO, run: ExpertRun, stop: StopFlag) -> str:
     finally:
         bar.close()
     if stop.requested:
+        boundaries.save_after_stop()  # a stop during the last update (or between two stretches)
         return "stopped"
     if not state.evaluations or state.evaluations[-1]["steps"] != model.num_timesteps:
         run.evaluate(model, model.num_timesteps)  # every expert ends with an evaluation at its last step
@@ -391,13 +449,21 @@ def training_envs(tracking: TrackingConfig, config: ExpertConfig) -> DummyVecEnv
 
 
 def _resume_or_build(expert: ExpertDir, vec_env, saved_state: dict | None, config: ExpertConfig):
-    """The PPO, the run state and whether it continues earlier steps: a checkpoint, another run's, or new."""
+    """The PPO, the run state, whether it continues earlier steps, and the boundary to continue exactly from.
+
+    From a checkpoint (exactly when it holds a resume file: checkpoints written before 2026-11-27 hold
+    none and continue with new episodes), another run's checkpoint or kept expert, or new.
+    """
+    boundary = None
     if saved_state is not None:
         files = expert.checkpoint
         step_size = saved_state.get("learning_rate")
         model = load_ppo(files.model, files.normaliser, vec_env, config.ppo, config.device, step_size)
         state = RunState.from_json(saved_state)
-        print(f"resuming {expert.root} from step {model.num_timesteps}")
+        if files.resume.is_file():
+            boundary = read_boundary(files.resume)
+            state = RunState.from_snapshot(boundary.run)  # the run state of the boundary written last
+        print(f"resuming {expert.root} from step {boundary.steps if boundary is not None else model.num_timesteps}")
     elif config.start_from:
         model, state = start_from_run(expert, vec_env, config)
     else:
@@ -407,7 +473,7 @@ def _resume_or_build(expert: ExpertDir, vec_env, saved_state: dict | None, confi
         state = RunState.starting_at(0, config)
     if not config.learn_action_std:
         model.policy.log_std.requires_grad_(False)  # the experts' action noise is fixed (MoCapAct)
-    return model, state, saved_state is not None or bool(config.start_from)
+    return model, state, saved_state is not None or bool(config.start_from), boundary
 
 
 def _finish(
@@ -426,6 +492,7 @@ def _finish(
         "best": state.best,
         "stop_reason": stop_reason,
         "config": expert_settings_json(config),
+        "finished": now(),  # the expert's file carries no date
     }
     if final is not None:
         summary["final_evaluation"] = final

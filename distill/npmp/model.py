@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -34,10 +34,11 @@ import torch
 from torch import nn
 
 from distill.npmp.config import NpmpConfig  # defined there (light), used and re-exported here
-from foundation.described_file import read_described, write_described
+from foundation.described_file import check_layout, read_described, write_described
+from foundation.json_fields import dataclass_from_json
 from foundation.networks import mlp
 from foundation.provenance import provenance
-from hierarchy.decoder import DecoderSpec, LatentDecoder, decoder_network
+from hierarchy.decoder import FLOAT32_MAX, DecoderSpec, LatentDecoder, decoder_network
 from tasks.observables import flat_batch
 
 POLICY_FORMAT = "mocap_hierarchy.multi_clip_policy"
@@ -252,27 +253,70 @@ class MultiClipPrompt:
         self._z[row] = 0.0
 
 
+class PolicyFileError(ValueError):
+    """A multi-clip policy file is unreadable, of another format or a newer schema, or damaged."""
+
+
 def load_policy(path: str | os.PathLike) -> NpmpPolicy:
     """Reads a file written by :meth:`NpmpPolicy.save` (no pickle).
 
+    Checked like a decoder file (:func:`hierarchy.decoder.load_decoder`): every field, every tensor's
+    shape against the declared networks before they are built, no NaN or infinite value, finite
+    actions at the mean observations.
+
     Raises:
         FileNotFoundError: No such file.
-        ValueError: Another format, a newer schema or corrupt content.
+        PolicyFileError: Another format, a newer schema or damaged content (naming the file and what is wrong).
     """
+    remedy = "; copy it again, or train one with `mocap-hierarchy distill train`"
     description, tensors = read_described(
         path,
         POLICY_FORMAT,
         POLICY_SCHEMA_VERSION,
         "multi-clip policy",
+        error=PolicyFileError,
         missing_hint=" (`mocap-hierarchy distill train` writes it)",
+        remedy=remedy,
+        finite=True,
     )
-    description["ref_steps"] = tuple(description["ref_steps"])
-    spec = NpmpSpec(**description)
-    policy = NpmpPolicy(
-        spec, tensors["encoder_mean"], tensors["encoder_std"], tensors["decoder_mean"], tensors["decoder_std"]
+    where = str(path)
+    spec = dataclass_from_json(NpmpSpec, description, f"{where}: multi-clip policy description", PolicyFileError)
+    config = dataclass_from_json(NpmpConfig, spec.config, f"{where}: multi-clip policy config", PolicyFileError)
+    spec = replace(spec, config=asdict(config))  # defaults filled in
+    beyond = [name for name, value in spec.config.items() if isinstance(value, float) and abs(value) > FLOAT32_MAX]
+    if beyond:
+        raise PolicyFileError(f"{where}: multi-clip policy config fields {beyond} are beyond float32's range{remedy}")
+    sizes = {"encoder": sum(spec.encoder_sizes.values()), "decoder": sum(spec.decoder_sizes.values())}
+    if min([*spec.encoder_sizes.values(), *spec.decoder_sizes.values(), spec.action_size, 1]) < 1:
+        raise PolicyFileError(f"{where}: observation sizes and action_size must be at least 1{remedy}")
+    for part, size in sizes.items():
+        for name in (f"{part}_mean", f"{part}_std"):
+            tensor = tensors.get(name)
+            if tensor is None or tuple(tensor.shape) != (size,) or not tensor.is_floating_point():
+                found = "missing" if tensor is None else f"{tensor.dtype} of shape {tuple(tensor.shape)}"
+                raise PolicyFileError(f"{where}: tensor {name} is {found}; the description needs ({size},) values")
+        if not bool((tensors[f"{part}_std"] > 0).all()):
+            raise PolicyFileError(f"{where}: tensor {part}_std holds values that are not positive{remedy}")
+    statistics = [tensors[name] for name in ("encoder_mean", "encoder_std", "decoder_mean", "decoder_std")]
+    check_layout(
+        lambda: NpmpPolicy(spec, *statistics),
+        tensors,
+        where,
+        "multi-clip policy",
+        PolicyFileError,
+        layers=len(config.encoder_layers) + len(config.decoder_layers),
     )
+    try:
+        policy = NpmpPolicy(spec, *statistics)
+    except ValueError as error:  # the decoder's spec refuses a bound or a size
+        raise PolicyFileError(f"{where}: {error}{remedy}") from None
     policy.load_state_dict(tensors)
     policy.eval()
+    probe, _ = policy.act(
+        statistics[0][None].numpy(), statistics[2][None].numpy(), np.zeros((1, config.latent_size), np.float32)
+    )
+    if not np.all(np.isfinite(probe)):
+        raise PolicyFileError(f"{where}: the policy computes NaN actions at its mean observations{remedy}")
     return policy
 
 

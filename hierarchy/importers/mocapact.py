@@ -32,7 +32,7 @@ from foundation.fingerprints import file_sha256
 from foundation.inert_pickle import InertStub, numpy_globals, stub_for, stub_state
 from foundation.networks import ACTIVATIONS
 from foundation.provenance import provenance
-from hierarchy.decoder import DecoderFileError, DecoderSpec, LatentDecoder, decoder_network
+from hierarchy.decoder import FLOAT32_MAX, DecoderFileError, DecoderSpec, LatentDecoder, decoder_network
 from tasks.observables import DECODER, PROPRIOCEPTION
 
 MOCAPACT_WALKER = "CMUHumanoidPositionControlledV2020"
@@ -203,7 +203,8 @@ def _observation_statistics(
             raise MocapActImportError(f"{path}: obs_rms[{key!r}] is not numbers ({_first_line(error)})") from None
         if mean.shape != var.shape or not mean.size:
             raise MocapActImportError(f"{path}: obs_rms[{key!r}] has {mean.size} means but {var.size} variances")
-        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)):
+        within = np.all(np.abs(mean) <= FLOAT32_MAX) and np.all(var <= FLOAT32_MAX)  # the decoder keeps float32
+        if not (within and np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)):
             raise MocapActImportError(f"{path}: obs_rms[{key!r}] holds NaN, infinite or negative statistics")
         sizes[key] = mean.size
         means.append(mean)

@@ -44,6 +44,7 @@ NORMALISER_FILE = "vecnormalize.pkl"
 TASK_RETURNS_FILE = "task_returns.json"  # beside SB3's resume files: the window the log averages
 SETTINGS_FILE = "settings.json"
 STEP_SIZE_FILE = "step_size.json"  # in CHECKPOINT_DIR under the adaptive rule: the step size it reached
+RESUME_FILE = "resume.pt"  # in CHECKPOINT_DIR: the run at an update boundary (foundation.sb3_resume; since 2026-11-27)
 
 RECORD_VERSION = 2
 """The version :func:`check_resume` writes; :func:`read_settings_record` reads every version up to it."""

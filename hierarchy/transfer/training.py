@@ -9,9 +9,11 @@ paper's baseline. The decoder stays frozen: it is never given to the optimiser
 
 Writes into ``out`` (see :mod:`hierarchy.transfer.run_folder`): ``policy.safetensors``
 (the pickle-free policy, see :mod:`hierarchy.task_policy`), ``progress.csv`` and
-``tensorboard/`` (SB3's logs), ``transfer.json`` (settings and outcome) and, while
-training, ``checkpoint/`` (SB3's own files and the settings record, to resume an
-interrupted run).
+``tensorboard/`` (SB3's logs), ``transfer.json`` (settings and outcome) and
+``checkpoint/`` (the resume file, SB3's own files and the settings record), written at
+the first update boundary after every ``checkpoint_every`` steps, at once on Ctrl-C or
+``SIGTERM`` (the last boundary) and at the end. An interrupted run started again goes on
+exactly as the uninterrupted run would (:mod:`foundation.sb3_resume`).
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import functools
 import json
 import os
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -31,20 +34,21 @@ from foundation.atomic import write_json
 from foundation.config_files import config_to_dict
 from foundation.divergence import TrainingDiverged
 from foundation.fingerprints import file_sha256
-from foundation.interrupts import StopFlag, ignore_interrupts_in_worker, stop_requests
-from foundation.provenance import provenance
+from foundation.interrupts import ignore_interrupts_in_worker, stop_requests
+from foundation.provenance import now, provenance
 from foundation.run_lock import run_lock
 from foundation.sb3 import (
     SAVE_EXCLUDE,
     StepSize,
     build_ppo,
     load_ppo,
-    non_finite_state,
+    refuse_non_finite,
     resumable_logger,
     save_sb3,
     saved_steps,
 )
-from foundation.sb3_callbacks import AdaptiveStepSize, StopOnDivergence
+from foundation.sb3_callbacks import AdaptiveStepSize, StopOnDivergence, UpdateBoundaries
+from foundation.sb3_resume import Boundary, EnvSnapshots, read_boundary, restore_boundary, take_boundary, write_boundary
 from hierarchy.decoder import LatentDecoder, load_decoder
 from hierarchy.latent_env import LatentActionVecEnv
 from hierarchy.latent_prior import LatentPrior, load_latent_prior, resolve_prior, shipped_prior_name
@@ -56,6 +60,7 @@ from hierarchy.transfer.run_folder import (
     MODEL_FILE,
     NORMALISER_FILE,
     POLICY_FILE,
+    RESUME_FILE,
     STEP_SIZE_FILE,
     SUMMARY_FILE,
     TASK_RETURNS_FILE,
@@ -64,6 +69,8 @@ from hierarchy.transfer.run_folder import (
     resume_settings,
 )
 from hierarchy.transfer.task_source import TaskSource
+from tasks.env_state import StateWrapper
+from tasks.vec_env_state import vec_env_snapshots
 
 
 def train_transfer(
@@ -120,34 +127,89 @@ def train_transfer(
         )
 
         venv = _vec_env(source, frozen, config, prior)
-        model = _resume_or_build(checkpoint, venv, config, with_decoder=frozen is not None, out=out)
-        resumed = model.num_timesteps > 0
-        model.set_logger(resumable_logger(out, ["csv", "tensorboard"], resumed=resumed))
+        model, boundary = _resume_or_build(checkpoint, venv, config, with_decoder=frozen is not None, out=out)
+        resumed = model.num_timesteps > 0 or boundary is not None
+        resumed_at = boundary.steps if boundary is not None else None
+        model.set_logger(resumable_logger(out, ["csv", "tensorboard"], resumed=resumed, steps=resumed_at))
+        run = _RunState.resumed(boundary, checkpoint, config) if resumed else _RunState.new(config)
+        snapshots = vec_env_snapshots()
+        if boundary is not None:  # last: the random generators go back to the checkpoint's
+            _continue_exactly(out, model, boundary, snapshots)
 
-        task_returns = TaskReturns.load(checkpoint / TASK_RETURNS_FILE) if resumed else TaskReturns()
+        def take() -> Boundary:
+            return take_boundary(model, run.snapshot(), snapshots)
+
         remaining = config.total_steps - model.num_timesteps
         if remaining > 0:
             with stop_requests() as stop:
-                every = config.checkpoint_every
-                callback = _ProgressAndCheckpoint(
-                    config.total_steps, every, checkpoint, progress, config.ppo.epochs, stop, task_returns
+                boundaries = UpdateBoundaries(
+                    take, functools.partial(_save_resume_files, model, checkpoint), run.checkpoint_due, stop
                 )
+                callback = _Progress(config.total_steps, progress, config.ppo.epochs, run.task_returns)
                 divergence = StopOnDivergence("transfer", functools.partial(_kept_checkpoint, checkpoint))
-                try:  # the divergence check first: nothing is saved from an update that went wrong
+                try:  # the divergence check first (nothing is kept from an update that went wrong), then the boundary
                     with divergence.watching(model):
-                        callbacks = CallbackList([divergence, callback, AdaptiveStepSize()])
+                        callbacks = CallbackList([divergence, boundaries, callback, AdaptiveStepSize()])
                         model.learn(remaining, callback=callbacks, reset_num_timesteps=False)
                 except TrainingDiverged:
                     venv.close()
                     raise
                 if stop.requested:
+                    boundaries.save_after_stop()  # a stop during the last update
                     venv.close()
                     raise stop.stop(f"transfer: stopped at step {model.num_timesteps}", "run the same command again")
 
+        final = take()  # before the policy file is built: the resume file keeps training's random state
         path = _save_policy(out, model, source, decoder, decoder_sha, config, prior_facts, behaviour_sha)
-        _save_resume_files(model, checkpoint, task_returns)
+        _save_resume_files(model, checkpoint, final)
         venv.close()
     return path
+
+
+def _continue_exactly(out: Path, model, boundary: Boundary, snapshots: EnvSnapshots) -> None:
+    """Puts the checkpoint's boundary into the loaded model and environments; says when episodes start anew."""
+    problem = restore_boundary(model, boundary, snapshots)
+    if problem is not None:
+        print(f"{out}: the episodes in progress at step {boundary.steps} were not restored ({problem}); "
+              "new episodes start")  # fmt: skip
+
+
+@dataclass
+class _RunState:
+    """What a transfer run knows beside the model: the logged task returns and the next checkpoint's step."""
+
+    task_returns: TaskReturns
+    next_checkpoint: int
+    every: int
+
+    @classmethod
+    def new(cls, config: TransferConfig) -> _RunState:
+        """A run starting at step 0."""
+        return cls(TaskReturns(), config.checkpoint_every, config.checkpoint_every)
+
+    @classmethod
+    def resumed(cls, boundary: Boundary | None, checkpoint: Path, config: TransferConfig) -> _RunState:
+        """From the resume file, or (a checkpoint written before 2026-11-27) the task-return file and the step."""
+        every = config.checkpoint_every
+        if boundary is None:
+            steps = saved_steps(checkpoint / MODEL_FILE) or 0
+            return cls(TaskReturns.load(checkpoint / TASK_RETURNS_FILE), (steps // every + 1) * every, every)
+        returns = TaskReturns(int(boundary.run["window"]))
+        returns.recent.extend(float(x) for x in boundary.run["task_returns"])
+        return cls(returns, int(boundary.run["next_checkpoint"]), every)
+
+    def snapshot(self) -> dict[str, Any]:
+        """The state as plain data, for the resume file."""
+        returns = self.task_returns.recent
+        return {"task_returns": list(returns), "window": returns.maxlen, "next_checkpoint": self.next_checkpoint}
+
+    def checkpoint_due(self, steps: int) -> bool:
+        """Whether a checkpoint is due at an update boundary of ``steps``; if so, the next one moves past it."""
+        if steps < self.next_checkpoint:
+            return False
+        while self.next_checkpoint <= steps:
+            self.next_checkpoint += self.every
+        return True
 
 
 def _kept_checkpoint(checkpoint: Path) -> str:
@@ -175,7 +237,11 @@ def _prior_for(
 def _vec_env(
     source: TaskSource, decoder: LatentDecoder | None, config: TransferConfig, prior: LatentPrior | None = None
 ):
-    """Raw task environments, decoded in one batch, then SB3's observation/reward normaliser."""
+    """Raw task environments, decoded in one batch, then SB3's observation/reward normaliser.
+
+    Each environment's outermost layer is a :class:`tasks.env_state.StateWrapper`, which snapshots it
+    (its ``Monitor`` included) in a worker process as in this one.
+    """
     from stable_baselines3.common.env_util import make_vec_env
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecNormalize
 
@@ -184,6 +250,7 @@ def _vec_env(
         functools.partial(_worker_env, source.factory) if use_processes else source.factory,
         n_envs=config.n_envs,
         seed=config.seed,
+        wrapper_class=StateWrapper,
         vec_env_cls=SubprocVecEnv if use_processes else DummyVecEnv,
         vec_env_kwargs={"start_method": "spawn"} if use_processes else None,
     )
@@ -199,17 +266,23 @@ def _worker_env(factory: Callable[[], gym.Env]) -> gym.Env:
 
 
 def _resume_or_build(checkpoint: Path, venv, config: TransferConfig, with_decoder: bool, out: Path):
-    """The run's own checkpoint when there is one (SB3 needs its pickles for the optimiser), else a new PPO."""
+    """The PPO and the boundary to continue exactly from: the run's own checkpoint when there is one, else new.
+
+    SB3's files give the model (its pickles hold the optimiser); the resume file, where there is one
+    (none in checkpoints written before 2026-11-27, which continue with new episodes), the boundary.
+    """
     model_file, normaliser_file = checkpoint / MODEL_FILE, checkpoint / NORMALISER_FILE
     if model_file.is_file() and normaliser_file.is_file():
         assert venv.venv is not None
         saved_step_size = checkpoint / STEP_SIZE_FILE  # the adaptive rule's, where it was saved
         step_size = json.loads(saved_step_size.read_text())["learning_rate"] if saved_step_size.is_file() else None
         model = load_ppo(model_file, normaliser_file, venv.venv, config.ppo, config.device, step_size)
-        print(f"resuming {out} from step {model.num_timesteps}")
-        return model
+        boundary = read_boundary(checkpoint / RESUME_FILE) if (checkpoint / RESUME_FILE).is_file() else None
+        print(f"resuming {out} from step {boundary.steps if boundary is not None else model.num_timesteps}")
+        return model, boundary
     steps_per_env = config.steps_per_update // config.n_envs
-    return build_ppo(venv, config.ppo, steps_per_env, config.std_for(with_decoder), config.seed, config.device)
+    model = build_ppo(venv, config.ppo, steps_per_env, config.std_for(with_decoder), config.seed, config.device)
+    return model, None
 
 
 def _save_policy(
@@ -244,60 +317,54 @@ def _save_policy(
             "task": source.name,
             "task_overrides": source.overrides,
             "decoder": decoder_facts,
-            "provenance": provenance(steps=int(model.num_timesteps), config=config_to_dict(config)),
+            # No date: the file's bytes follow from the run (transfer.json says when it finished).
+            "provenance": provenance(dated=False, steps=int(model.num_timesteps), config=config_to_dict(config)),
         },
     )
     path = policy.save(out / POLICY_FILE)
     summary = {"task": source.name, "task_overrides": source.overrides, "decoder": decoder_facts}
-    write_json(out / SUMMARY_FILE, {**summary, "config": config_to_dict(config)})
+    write_json(out / SUMMARY_FILE, {**summary, "config": config_to_dict(config), "finished": now()})
     return path
 
 
-def _save_resume_files(model, folder: Path, task_returns: TaskReturns) -> None:
-    """SB3's model and normaliser (the run's own resume files) and the task returns the log averages.
+def _save_resume_files(model, folder: Path, boundary: Boundary) -> None:
+    """Writes ``boundary`` (the model is at it): the resume file, then SB3's model and normaliser and the rest.
 
-    Under the adaptive rule, also the step size it reached (the model file leaves the step size out).
-    Nothing is written from weights or statistics that are NaN or infinite (the files there stay).
+    The resume file (:mod:`foundation.sb3_resume`) comes first and alone decides where a rerun
+    continues, so a kill between the files never mixes two checkpoints. SB3's files give the rerun
+    its model; ``task_returns.json`` (the window the log averages) and, under the adaptive rule,
+    ``step_size.json`` are what checkpoints written before the resume file held. Nothing is written
+    from weights or statistics that are NaN or infinite (the files there stay).
 
     Raises:
         TrainingDiverged: A weight or statistic is not finite.
     """
-    problem = non_finite_state(model)
-    if problem is not None:
-        kept = f"the files in {folder} are the last good ones"
-        raise TrainingDiverged("transfer: refusing to save the resume files", model.num_timesteps, *problem, kept)
-    task_returns.save(folder / TASK_RETURNS_FILE)
+    normaliser = model.get_vec_normalize_env()
+    refuse_non_finite(model, normaliser, folder / RESUME_FILE)
+    write_boundary(folder / RESUME_FILE, boundary)
+    returns = TaskReturns(int(boundary.run["window"]))
+    returns.recent.extend(boundary.run["task_returns"])
+    returns.save(folder / TASK_RETURNS_FILE)
     step_size = model.lr_schedule
     if isinstance(step_size, StepSize) and step_size.ppo.schedule == "adaptive":
-        write_json(folder / STEP_SIZE_FILE, {"learning_rate": step_size.value})
-    save_sb3(model, model.get_vec_normalize_env(), folder / MODEL_FILE, folder / NORMALISER_FILE, SAVE_EXCLUDE)
+        write_json(folder / STEP_SIZE_FILE, {"learning_rate": boundary.learner["step_size"]})
+    save_sb3(model, normaliser, folder / MODEL_FILE, folder / NORMALISER_FILE, SAVE_EXCLUDE)
 
 
-class _ProgressAndCheckpoint(BaseCallback):
-    """Progress bar, resume files and the task's own return for one training run.
+class _Progress(BaseCallback):
+    """Progress bar and the task's own return for one training run.
 
-    The bar counts environment steps (and says when PPO updates), resume files are written
-    every ``every`` steps, and the task's return is logged beside SB3's (:data:`TASK_RETURN_KEY`).
+    The bar counts environment steps (and says when PPO updates), and the task's return is logged
+    beside SB3's (:data:`TASK_RETURN_KEY`).
     """
 
-    def __init__(
-        self,
-        total: int,
-        every: int,
-        folder: Path,
-        progress: bool,
-        epochs: int,
-        stop: StopFlag,
-        task_returns: TaskReturns,
-    ) -> None:
+    def __init__(self, total: int, progress: bool, epochs: int, task_returns: TaskReturns) -> None:
         super().__init__()
-        self.total, self.every, self.folder, self.progress, self.epochs = total, every, folder, progress, epochs
-        self.stop, self.task_returns = stop, task_returns
+        self.total, self.progress, self.epochs, self.task_returns = total, progress, epochs, task_returns
 
     def _on_training_start(self) -> None:
         steps = self.model.num_timesteps
         self.bar = tqdm(total=self.total, initial=steps, desc="high-level PPO", unit="step", disable=not self.progress)
-        self.next_save = (steps // self.every + 1) * self.every
 
     def _on_rollout_start(self) -> None:
         self.bar.set_postfix_str("")
@@ -306,12 +373,6 @@ class _ProgressAndCheckpoint(BaseCallback):
     def _on_step(self) -> bool:
         self.bar.update(self.model.num_timesteps - self.bar.n)
         self.task_returns.add(self.locals.get("infos", ()), self.locals.get("dones", ()))
-        if self.model.num_timesteps >= self.next_save:
-            _save_resume_files(self.model, self.folder, self.task_returns)
-            self.next_save += self.every
-        if self.stop.requested:  # Ctrl-C or SIGTERM: save where we are and leave PPO's loop
-            _save_resume_files(self.model, self.folder, self.task_returns)
-            return False
         return True
 
     def _on_rollout_end(self) -> None:

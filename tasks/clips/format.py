@@ -24,8 +24,9 @@ Features (world frame unless stated; quaternions w, x, y, z)::
     joints_velocity 56   joint velocities, mocap order
 
 Files written here also carry the root attribute ``mocap_hierarchy_clips``
-(schema version) and per-clip ``description`` attributes; dm_control's loader
-ignores attributes it does not know.
+(schema version) and per-clip ``description`` attributes (fixed-length UTF-8; a
+variable-length one, as files written before 2026-11-26 hold, is not read back:
+see :func:`_description`); dm_control's loader ignores attributes it does not know.
 """
 
 from __future__ import annotations
@@ -151,8 +152,8 @@ def _write_clip(f: h5py.File, clip: Clip) -> None:
     group = f.create_group(clip.clip_id)
     group.attrs["num_steps"] = np.int64(clip.num_steps)
     group.attrs["dt"] = np.float64(clip.dt)
-    if clip.description:
-        group.attrs["description"] = clip.description
+    if clip.description:  # fixed-length UTF-8: kept in the group's header, out of HDF5's global heap
+        group.attrs["description"] = np.bytes_(clip.description.encode())
     group.create_group("props")
     walker = group.create_group("walkers").create_group("walker_0")
     walker.create_group("scaling")
@@ -254,14 +255,24 @@ def _read_clip_from(f: h5py.File, clip_id: str) -> Clip:
             raise ClipFileError(f"{where} lacks the dataset walkers/walker_0/{name}")
         if dataset.shape != (size, num_steps) or dataset.dtype.kind not in "fiu":
             raise ClipFileError(
-                f"{where}: walkers/walker_0/{name} is {dataset.dtype} of shape {dataset.shape}, expected numbers of "
-                f"shape {(size, num_steps)} (V2020 walker layout: features x steps)"
+                f"{where}: walkers/walker_0/{name} has shape {dataset.shape}, expected {(size, num_steps)} "
+                f"({dataset.dtype}; numbers belong there, in the V2020 walker layout: features x steps)"
             )
         values = read_bounded(dataset, f"{where}: walkers/walker_0/{name}", ClipFileError).astype(np.float64)
         if not np.all(np.isfinite(values)):
             raise ClipFileError(f"{where}: walkers/walker_0/{name} contains NaN or infinite values")
         arrays[name] = np.ascontiguousarray(values.T)
-    description = group.attrs.get("description", "")
-    if isinstance(description, bytes):
-        description = description.decode(errors="replace")
-    return Clip(clip_id=clip_id, dt=dt, description=str(description), **arrays)
+    return Clip(clip_id=clip_id, dt=dt, description=_description(group), **arrays)
+
+
+def _description(group: h5py.Group) -> str:
+    """A clip's ``description``: a fixed-length string; one of variable length (files from before) is not read.
+
+    Variable-length strings live in HDF5's global heap, and reading one from a file whose heap is
+    damaged makes the HDF5 library loop forever, out of reach of any timeout; the text is only
+    informative, so it is skipped rather than risked.
+    """
+    if "description" not in group.attrs or group.attrs.get_id("description").dtype.kind != "S":
+        return ""
+    value = np.asarray(group.attrs["description"]).reshape(-1)
+    return b"".join(bytes(v) for v in value).decode(errors="replace")

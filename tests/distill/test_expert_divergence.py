@@ -42,8 +42,8 @@ def test_an_expert_whose_update_turns_nan_stops_at_once_and_keeps_the_last_good_
     saved: list[dict[str, bytes]] = []
     save = ExpertRun.save_checkpoint
 
-    def recorded_save(self: ExpertRun, model: PPO) -> None:
-        save(self, model)
+    def recorded_save(self: ExpertRun, model: PPO, boundary) -> None:
+        save(self, model, boundary)
         saved.append(checkpoint_bytes(self.expert.checkpoint_dir))
 
     monkeypatch.setattr(PPO, "train", poisoning_second_update)
@@ -53,13 +53,14 @@ def test_an_expert_whose_update_turns_nan_stops_at_once_and_keeps_the_last_good_
     expert = expert_dir_for(tmp_path, snippet)
     error = diverged.value
     assert updates == [512, 1024] and error.step == 1024  # no rollout after the update that went wrong
+    # Checkpoints are written at update boundaries: the last good one is the boundary after the first update.
     assert str(error).startswith(
         f"expert {snippet}: training diverged at step 1024: policy parameter value_net.weight became nan; stopped "
-        f"at once, the last good checkpoint (step 1024) is kept in {expert.checkpoint_dir}; lower the learning rate"
+        f"at once, the last good checkpoint (step 512) is kept in {expert.checkpoint_dir}; lower the learning rate"
     )
-    assert len(saved) == 2 and checkpoint_bytes(expert.checkpoint_dir) == saved[-1]  # the last good one, as written
+    assert len(saved) == 1 and checkpoint_bytes(expert.checkpoint_dir) == saved[-1]  # the last good one, as written
     assert non_finite_state(PPO.load(expert.checkpoint.model), None) is None
-    assert json.loads(expert.checkpoint.state.read_text())["steps"] == 1024
+    assert json.loads(expert.checkpoint.state.read_text())["steps"] == 512
     assert not expert.done.exists() and not (expert.root / LOCK_NAME).exists()
 
 
@@ -77,6 +78,6 @@ def test_expert_train_whose_learning_rate_blows_up_ends_with_one_line_and_keeps_
     expert = expert_dir_for(out, snippet)
     prefix = f"mocap-hierarchy expert: error: expert {snippet}: training diverged at step 512: "
     assert error.startswith(prefix), error
-    assert f"the last good checkpoint (step 512) is kept in {expert.checkpoint_dir}; lower the learning rate" in error
+    assert f"the last good checkpoint (step 256) is kept in {expert.checkpoint_dir}; lower the learning rate" in error
     assert non_finite_state(PPO.load(expert.checkpoint.model), None) is None
     assert not expert.done.exists()

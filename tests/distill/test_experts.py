@@ -307,7 +307,7 @@ def test_a_run_started_from_another_continues_its_checkpoint_with_its_own_settin
     source_weights = PPO.load(source.checkpoint.model, device="cpu").policy.state_dict()
     started = with_settings(config, {"gamma": 0.99, "action_std": "0.2", "start_from": str(tmp_path / "source")})
     vec_env = training_envs(training_task((snippet,), str(clip_library), started), started)
-    model, _, continued = _resume_or_build(ExpertDir(tmp_path / "new" / snippet), vec_env, None, started)
+    model, _, continued, _ = _resume_or_build(ExpertDir(tmp_path / "new" / snippet), vec_env, None, started)
     assert continued and model.num_timesteps == 512 and model.gamma == 0.99
     assert model.get_vec_normalize_env().gamma == 0.99
     for name, value in source_weights.items():  # the other run's networks, only the fixed noise is this run's

@@ -2,9 +2,11 @@
 
 Each trial runs the real command in a subprocess, kills its process group
 (SIGKILL: no handler runs) at moments drawn from a seed, reruns the same command
-until it finishes, and checks: it finishes; deterministic outputs equal an
-uninterrupted run's byte for byte, the others are complete and readable; no
-temporary file is left; no finished unit of work is written again. Reports
+until it finishes, and checks: it finishes; its outputs equal an uninterrupted
+run's in the same folder, byte for byte (the stable-baselines3 jobs: their own
+files byte for byte, SB3's files by content, see ``tests/ppo_runs.py``), where the
+job is deterministic, and are complete and readable where not; no temporary file
+is left; no finished unit of work is written again. Reports
 are appended to ``KILL_REPORT`` (an environment variable naming a file) when
 it is set: ``docs/results.md``'s table comes from there. The default run
 keeps one quick trial and the clean-stop tests; ``pytest -m slow`` runs all.
@@ -25,6 +27,7 @@ from pathlib import Path
 import pytest
 
 from tests.fault_injection import (
+    BYTE_FOR_BYTE,
     IGNORED_OUTPUTS,
     KillReport,
     Timing,
@@ -35,6 +38,7 @@ from tests.fault_injection import (
     run_to_end,
     temporaries,
 )
+from tests.ppo_runs import assert_same_ppo_runs
 
 SMALL_MODEL = ["--latent-size", "4", "--encoder-layers", "16", "16", "--decoder-layers", "16", "16", "16"]
 SMALL_WINDOWS = ["--window", "5", "--batch-size", "8", "--device", "cpu"]
@@ -80,8 +84,8 @@ def distill_args(rollout_dir: Path, steps: int = 400):
     return args
 
 
-PPO_RESUME = "PPO resumes from its last checkpoint with new episodes (the stopping guide says what differs)"
-"""What the kill table says of the stable-baselines3 jobs."""
+PPO_SAME = f"the library's files {BYTE_FOR_BYTE}, SB3's model zips and normaliser pickles by content"
+"""How the kill table says the stable-baselines3 jobs equal an uninterrupted run (``tests/ppo_runs.py``)."""
 
 RUN_RECORDS = ("distill.json", "gpt.json")
 """Run summaries: their wall time, finishing date and resumed-from step differ by nature (compared without them)."""
@@ -169,39 +173,50 @@ def test_expert_train_many_killed(clip_library, tmp_path, where):
         return ["expert", "train-many", "--snippets", str(snippets), "--out", str(out), *runner,
                 "--clips", str(clip_library), *TINY_EXPERT]  # fmt: skip
 
-    _, reference = run_to_end(args(tmp_path / "reference"), tmp_path / "reference")
+    reference, timing = reference_run(args, tmp_path)
     name = f"expert train-many ({'process pool' if where == 'pool' else 'local Ray'})"
-    report = kill_and_resume(name, args, tmp_path / "trial", 4, seed=4, unit_pattern="*/done.json", reference=reference)
+    report = kill_and_resume(name, args, tmp_path / "trial", 4, seed=4, unit_pattern="*/done.json", reference=timing)
     check_common(report, 4)
     assert report.units == 3
-    publish(report, why_not=PPO_RESUME)
+    assert_same_ppo_runs(tmp_path / "trial" / "out", reference)
+    publish(report, identical=True, how=PPO_SAME)
 
 
 @pytest.mark.slow
 def test_expert_train_killed_resumes(clip_library, tmp_path):
-    def args(out: Path) -> list[str]:
+    def args(out: Path) -> list[str]:  # 3072 steps: long enough for kills to land after checkpoints
         return ["expert", "train", "--snippet", "SYN_wave-0-196", "--out", str(out), "--clips", str(clip_library),
-                "--n-envs", "2", *TINY_EXPERT]  # fmt: skip
+                "--n-envs", "2", *TINY_EXPERT, "--steps", "3072"]  # fmt: skip
 
-    _, reference = run_to_end(args(tmp_path / "reference"), tmp_path / "reference")
-    report = kill_and_resume("expert train", args, tmp_path / "trial", 3, seed=5, reference=reference)
+    reference, timing = reference_run(args, tmp_path)  # 2 environments in worker processes
+    report = kill_and_resume("expert train", args, tmp_path / "trial", 3, seed=5, reference=timing)
     check_common(report, 3)
-    done = json.loads((tmp_path / "trial" / "out" / "SYN_wave-0-196" / "done.json").read_text())
-    assert done["steps"] >= 1536 and not (tmp_path / "trial" / "out" / "SYN_wave-0-196" / "checkpoint").exists()
-    publish(report, why_not=PPO_RESUME)
+    out = tmp_path / "trial" / "out"
+    done = json.loads((out / "SYN_wave-0-196" / "done.json").read_text())
+    assert done["steps"] == 3072 and not (out / "SYN_wave-0-196" / "checkpoint").exists()
+    if furthest_step_shown(report.killed_log, 3072) >= 512:  # a killed run got past a checkpoint (at step 256)
+        assert "resuming" in report.log
+    assert "were not restored" not in report.log  # every resume continued the episodes in progress
+    assert_same_ppo_runs(out, reference)
+    publish(report, identical=True, how=PPO_SAME)
 
 
 @pytest.mark.slow
 def test_transfer_train_killed_resumes(decoder_file, tmp_path):
-    def args(out: Path) -> list[str]:
+    def args(out: Path) -> list[str]:  # 4096 steps: long enough after the startup for kills after checkpoints
         return ["transfer", "train", "--task", "velocity_control", "--decoder", str(decoder_file), "--out", str(out),
-                "--steps", "1024", "--checkpoint-every", "128", *TINY_PPO, "--set", "max_steps=20"]  # fmt: skip
+                "--steps", "4096", "--checkpoint-every", "128", *TINY_PPO, "--set", "max_steps=20"]  # fmt: skip
 
-    _, reference = run_to_end(args(tmp_path / "reference"), tmp_path / "reference")
-    report = kill_and_resume("transfer train", args, tmp_path / "trial", 3, seed=6, reference=reference)
+    reference, timing = reference_run(args, tmp_path)  # 2 environments in worker processes
+    report = kill_and_resume("transfer train", args, tmp_path / "trial", 3, seed=6, reference=timing)
     check_common(report, 3)
-    assert (tmp_path / "trial" / "out" / "policy.safetensors").is_file()
-    publish(report, why_not=PPO_RESUME)
+    out = tmp_path / "trial" / "out"
+    assert (out / "policy.safetensors").is_file()
+    if furthest_step_shown(report.killed_log, 4096) >= 256:  # a killed run got past a checkpoint (at step 128)
+        assert "resuming" in report.log
+    assert "were not restored" not in report.log  # every resume continued the episodes in progress
+    assert_same_ppo_runs(out, reference)
+    publish(report, identical=True, how=PPO_SAME)
 
 
 @pytest.mark.slow

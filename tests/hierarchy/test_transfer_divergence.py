@@ -26,8 +26,8 @@ def test_a_learning_rate_that_blows_up_stops_transfer_at_once_and_keeps_the_last
     saved: list[dict[str, bytes]] = []
     save = training._save_resume_files
 
-    def recorded_save(model, folder, task_returns) -> None:
-        save(model, folder, task_returns)
+    def recorded_save(model, folder, boundary) -> None:
+        save(model, folder, boundary)
         saved.append({path.name: path.read_bytes() for path in sorted(folder.iterdir())})
 
     monkeypatch.setattr(training, "_save_resume_files", recorded_save)
@@ -35,8 +35,9 @@ def test_a_learning_rate_that_blows_up_stops_transfer_at_once_and_keeps_the_last
         train_transfer("velocity_control", tmp_path, None, config, {"max_steps": 20}, progress=False)
     error = diverged.value
     assert error.step == 192 and str(error).startswith("transfer: training diverged at step 192: ")
-    assert f"stopped at once, the last good checkpoint (step 192) is kept in {checkpoint}; lower the" in str(error)
+    # Checkpoints are written at update boundaries: the last good one is the boundary after the second update.
+    assert f"stopped at once, the last good checkpoint (step 128) is kept in {checkpoint}; lower the" in str(error)
     assert saved and {path.name: path.read_bytes() for path in sorted(checkpoint.iterdir())} == saved[-1]
-    assert saved_steps(checkpoint / MODEL_FILE) == 192
+    assert saved_steps(checkpoint / MODEL_FILE) == 128
     assert non_finite_state(PPO.load(checkpoint / MODEL_FILE), None) is None
     assert not (tmp_path / POLICY_FILE).exists() and not (tmp_path / LOCK_NAME).exists()

@@ -16,6 +16,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
 import tasks
 from foundation.config_files import with_settings
+from foundation.sb3 import StepSize
 from hierarchy import LatentActionVecEnv
 from hierarchy.task_policy import load_task_policy, task_policy_from_sb3
 from hierarchy.transfer import TransferConfig, evaluate_transfer, train_transfer
@@ -184,5 +185,10 @@ def test_the_step_size_follows_its_schedule_or_the_adaptive_rule_also_across_a_r
     assert saved < 1e-3  # a KL far above 1e-6 made the step size smaller
     longer = dataclasses.replace(adaptive, total_steps=256)
     train_transfer("velocity_control", out, None, longer, {"max_steps": 30}, progress=False)
-    # The row at 256 logs the resumed run's first update: it went on from the saved step size, not from 1e-3.
-    assert _logged_step_sizes(out)[256] == pytest.approx(saved)
+    # The row at 256 logs the resumed run's first update: the rule went on from the saved step size and the
+    # KL of the update before the checkpoint (not from 1e-3, nor without that KL), as an uninterrupted run does.
+    assert _logged_step_sizes(out)[256] == pytest.approx(saved / StepSize.FACTOR)
+    train_transfer("velocity_control", tmp_path / "whole", None, longer, {"max_steps": 30}, progress=False)
+    assert _logged_step_sizes(out) == _logged_step_sizes(tmp_path / "whole")
+    # The finished run, given more steps, went on as a run with that budget from the start, byte for byte.
+    assert (out / "policy.safetensors").read_bytes() == (tmp_path / "whole" / "policy.safetensors").read_bytes()
