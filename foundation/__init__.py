@@ -13,6 +13,8 @@ modules that build networks or read model files, and only when they are used):
 * :mod:`foundation.onnx_files`: ONNX graphs for deployment, their metadata and their parity with torch
   (:mod:`foundation.interfaces`: a model's inputs and outputs as plain data);
 * :mod:`foundation.sb3`: the one stable-baselines3 PPO builder and its save helpers;
+* :mod:`foundation.sb3_resume`: a PPO run at an update boundary, complete, so that a resumed run goes on exactly
+  (:mod:`foundation.random_state`: the process's random generators as plain data);
 * :mod:`foundation.run_lock`: one writer per run folder (a second run on it is refused at once);
 * :mod:`foundation.divergence`: the error of a run whose losses or weights became NaN or infinite;
 * :mod:`foundation.lockstep`: several environments stepped for one batched policy call;

@@ -56,10 +56,8 @@ def random_state() -> dict[str, Any]:
 def restore_random_state(state: Mapping[str, Any]) -> None:
     """Puts back the generators' states :func:`random_state` read.
 
-    CUDA's are put back when the state has them and this process can use as many devices.
-
-    Raises:
-        ValueError: The state holds CUDA generators for more devices than this process sees.
+    CUDA's are put back when the state has them and this process sees as many devices; otherwise
+    (a run moved to a machine without them, where its arithmetic differs anyway) they are left as they are.
     """
     import torch
 
@@ -72,10 +70,9 @@ def restore_random_state(state: Mapping[str, Any]) -> None:
     )  # fmt: skip
     torch.set_rng_state(torch.from_numpy(np.asarray(state["torch"], dtype=np.uint8).copy()))
     cuda = state.get("cuda")
-    if cuda:
-        if not torch.cuda.is_available() or torch.cuda.device_count() < len(cuda):
-            raise ValueError(f"the random state holds {len(cuda)} CUDA generators; this process sees fewer devices")
-        torch.cuda.set_rng_state_all([torch.from_numpy(np.asarray(s, dtype=np.uint8).copy()) for s in cuda])
+    if cuda and torch.cuda.is_available() and torch.cuda.device_count() >= len(cuda):
+        for device, saved in enumerate(cuda):
+            torch.cuda.set_rng_state(torch.from_numpy(np.asarray(saved, dtype=np.uint8).copy()), device)
 
 
 @contextlib.contextmanager

@@ -177,7 +177,7 @@ def restore_boundary(model: Any, boundary: Boundary, envs: EnvSnapshots | None) 
         last observation is cleared so that ``learn`` resets them (new episodes).
 
     Raises:
-        ResumeFileError: The boundary is of other environments' count or observations.
+        ResumeFileError: The normaliser's observations are not the boundary's.
     """
     saved_envs = len(boundary.learner["last_episode_starts"])
     if int(model.n_envs) != saved_envs:

@@ -46,7 +46,9 @@ def weights(model) -> dict[str, torch.Tensor]:
     return {**model.policy.state_dict(), "step_size": torch.tensor(model.lr_schedule.value)}
 
 
-def test_a_run_continued_from_its_boundary_file_trains_the_weights_of_the_run_that_went_on(tmp_path: Path):
+def test_a_run_continued_from_its_boundary_file_trains_the_weights_of_the_run_that_went_on(
+    tmp_path: Path, one_torch_thread
+):
     whole = ppo()
     whole.learn(128)  # two updates of 64 steps, 20-step episodes: episodes are under way at the boundary
     boundary = take_boundary(whole, {"note": "the caller's"}, vec_env_snapshots())
@@ -65,7 +67,7 @@ def test_a_run_continued_from_its_boundary_file_trains_the_weights_of_the_run_th
         assert torch.equal(weights(model)[name], tensor), name
 
 
-def test_without_the_environments_a_run_goes_on_with_new_episodes_and_says_why(tmp_path: Path):
+def test_without_the_environments_a_run_goes_on_with_new_episodes_and_says_why(tmp_path: Path, one_torch_thread):
     model = ppo()
     model.learn(64)
     boundary = take_boundary(model, {}, None)
