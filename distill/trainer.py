@@ -248,7 +248,10 @@ def _restore_random_state(state: dict, device: torch.device) -> None:
 
 
 def _sampling_seed(seed: int, rank: int) -> int:
-    """The seed of this process's batch stream (the stream's position is the step, see ``batches``)."""
+    """The seed of this process's batch stream (the stream's position is the step, see ``batches``).
+
+    The trailing 0 keeps the seed runs drew before resumes became exact (then the step reached, 0 when fresh).
+    """
     return int(np.random.SeedSequence([seed, rank, 0]).generate_state(1)[0])
 
 
@@ -286,7 +289,9 @@ class _DivergenceGuard:
 
     def stop(self, quantities: dict[str, Any]) -> None:
         """Raises :class:`TrainingDiverged` naming the first non-finite quantity."""
-        found = first_non_finite(quantities.items()) or (next(iter(quantities)), math.nan)
+        self._raise(first_non_finite(quantities.items()) or (next(iter(quantities)), math.nan))
+
+    def _raise(self, found: tuple[str, float]) -> None:
         kept = (
             f"the last good checkpoint (step {self.saved}) is kept in {self.checkpoint}"
             if self.saved is not None
@@ -297,9 +302,9 @@ class _DivergenceGuard:
     def check_weights(self, model: nn.Module, step: int) -> None:
         """Raises when a weight is not finite (before a checkpoint is written from them)."""
         self.step = step
-        if first_non_finite(model.named_parameters()) is not None:
-            named = {f"weight {name}": parameter for name, parameter in model.named_parameters()}
-            self.stop(named)
+        found = first_non_finite((f"weight {name}", weight) for name, weight in model.named_parameters())
+        if found is not None:
+            self._raise(found)
 
 
 class _Log:

@@ -18,7 +18,7 @@ is pickled as an object, so a snapshot read back runs no code and needs no class
 from __future__ import annotations
 
 import base64
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -40,25 +40,32 @@ def plain_copy(value: Any, where: str = "state") -> Any:
         TypeError: Something in ``value`` is not plain data (an object, a dict key that is not a
             string, an array of Python objects); the message names its path.
     """
+    return _walk_plain(value, where, lambda array, _: array.copy() if isinstance(array, np.ndarray) else array)
+
+
+def _walk_plain(value: Any, where: str, on_array: Callable[[Any, str], Any], reserved: str | None = None) -> Any:
+    """Rebuilds plain data with ``on_array(array, where)`` in place of every array and NumPy scalar.
+
+    The one traversal of :func:`plain_copy` and :func:`to_storable`: it refuses what is not plain data
+    (and a dict holding the ``reserved`` key), naming where; tuples become lists.
+    """
+    if isinstance(value, (np.ndarray, np.generic)):
+        if np.asarray(value).dtype.hasobject:
+            raise TypeError(f"{where} holds Python objects; a snapshot holds numbers only")
+        return on_array(value, where)
     if isinstance(value, _SCALARS):
         return value
-    if isinstance(value, np.ndarray):
-        if value.dtype.hasobject:
-            raise TypeError(f"{where} is an array of Python objects; a snapshot holds numbers only")
-        return value.copy()
-    if isinstance(value, np.generic):
-        if isinstance(value, np.object_):
-            raise TypeError(f"{where} is a NumPy object scalar; a snapshot holds numbers only")
-        return value
     if isinstance(value, Mapping):
+        if reserved is not None and reserved in value:
+            raise TypeError(f"{where} uses the reserved key {reserved!r}")
         out = {}
         for key, item in value.items():
             if not isinstance(key, str):
                 raise TypeError(f"{where} has the key {key!r}; snapshot keys are strings")
-            out[key] = plain_copy(item, f"{where}[{key!r}]")
+            out[key] = _walk_plain(item, f"{where}[{key!r}]", on_array, reserved)
         return out
     if isinstance(value, (list, tuple)):
-        return [plain_copy(item, f"{where}[{i}]") for i, item in enumerate(value)]
+        return [_walk_plain(item, f"{where}[{i}]", on_array, reserved) for i, item in enumerate(value)]
     raise TypeError(f"{where} is a {type(value).__name__}, not plain data (numbers, strings, arrays, dicts, lists)")
 
 
@@ -88,27 +95,15 @@ def to_storable(value: Any, where: str = "state") -> Any:
     Raises:
         TypeError: ``value`` is not plain data, or a dict already uses :data:`ARRAY_KEY`.
     """
-    if isinstance(value, (np.ndarray, np.generic)):
-        array = np.asarray(value)
-        if array.dtype.hasobject:
-            raise TypeError(f"{where} holds Python objects; a snapshot holds numbers only")
-        data = base64.b64encode(np.ascontiguousarray(array).tobytes()).decode("ascii")
-        spelt = {"dtype": array.dtype.str, "shape": list(array.shape), "data": data}
-        return {ARRAY_KEY: {**spelt, "scalar": isinstance(value, np.generic)}}
-    if isinstance(value, _SCALARS):
-        return value
-    if isinstance(value, Mapping):
-        if ARRAY_KEY in value:
-            raise TypeError(f"{where} uses the reserved key {ARRAY_KEY!r}")
-        out = {}
-        for key, item in value.items():
-            if not isinstance(key, str):
-                raise TypeError(f"{where} has the key {key!r}; snapshot keys are strings")
-            out[key] = to_storable(item, f"{where}[{key!r}]")
-        return out
-    if isinstance(value, (list, tuple)):
-        return [to_storable(item, f"{where}[{i}]") for i, item in enumerate(value)]
-    raise TypeError(f"{where} is a {type(value).__name__}, not plain data (numbers, strings, arrays, dicts, lists)")
+    return _walk_plain(value, where, _spelt_array, reserved=ARRAY_KEY)
+
+
+def _spelt_array(value: np.ndarray | np.generic, where: str) -> dict[str, Any]:
+    """An array or NumPy scalar as ``{ARRAY_KEY: {dtype, shape, base64 data, scalar}}``."""
+    array = np.asarray(value)
+    data = base64.b64encode(np.ascontiguousarray(array).tobytes()).decode("ascii")
+    spelt = {"dtype": array.dtype.str, "shape": list(array.shape), "data": data}
+    return {ARRAY_KEY: {**spelt, "scalar": isinstance(value, np.generic)}}
 
 
 def from_storable(value: Any) -> Any:

@@ -12,6 +12,7 @@ what the outputs look like, for the test to assert on and for
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import random
@@ -24,6 +25,35 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from foundation.interrupts import StopFlag
+
+
+class _StopAfter(StopFlag):
+    """A stop request (SIGTERM) that arrives at the ``calls``-th time a job asks whether to stop."""
+
+    def __init__(self, calls: int) -> None:
+        super().__init__()
+        self.left = calls
+
+    @property
+    def requested(self) -> bool:
+        self.left -= 1
+        if self.left == 0:
+            self.signal = signal.SIGTERM
+        return self.signal is not None
+
+
+def stopping_after(calls: int) -> Callable[[], contextlib.AbstractContextManager[StopFlag]]:
+    """A stand-in for :func:`foundation.interrupts.stop_requests` (monkeypatch it into a trainer's module) whose
+    stop arrives at the ``calls``-th question: a clean stop at a chosen point, in process."""
+
+    @contextlib.contextmanager
+    def stop_requests() -> Iterator[StopFlag]:
+        yield _StopAfter(calls)
+
+    return stop_requests
+
 
 IGNORED_OUTPUTS = ("events.out.tfevents", "progress.csv", "timings", ".log")
 """Files whose bytes depend on wall time (TensorBoard, SB3's CSV log): not compared."""

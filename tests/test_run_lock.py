@@ -198,17 +198,10 @@ def test_under_torchrun_only_rank_0_takes_the_run_lock(tmp_path, monkeypatch):
             pass
 
 
-def test_a_folder_this_process_cannot_write_is_read_without_a_lock(tmp_path):
-    folder = tmp_path / "read_only"
-    folder.mkdir()
-    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=64k", "tmpfs", str(folder)], capture_output=True)
-    if mounted.returncode:
-        pytest.skip("cannot mount a tmpfs here")
-    try:
-        with run_lock(folder):  # a finished run read again (nothing to write): no lock needed, none refused
-            pass
-        with pytest.raises(OSError, match="Read-only file system") as refused, run_lock(folder / "new"):
-            pass
-        assert refused.value.filename == str(folder / "new")  # the folder it could not create, named
-    finally:
-        subprocess.run(["umount", "-l", str(folder)], check=False)
+def test_a_folder_this_process_cannot_write_is_read_without_a_lock(read_only_folder):
+    folder = read_only_folder
+    with run_lock(folder):  # a finished run read again (nothing to write): no lock needed, none refused
+        pass
+    with pytest.raises(OSError, match="Read-only file system") as refused, run_lock(folder / "new"):
+        pass
+    assert refused.value.filename == str(folder / "new")  # the folder it could not create, named

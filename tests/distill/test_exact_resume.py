@@ -12,10 +12,8 @@ same for ``transfer train``. ``tests/distill/test_kill_resume.py`` does it all w
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -28,40 +26,17 @@ from distill.gpt.training import default_gpt_sampler, train_gpt
 from distill.npmp.model import NpmpConfig
 from distill.npmp.training import default_sampler, train_npmp
 from distill.trainer import TrainerConfig
-from foundation.interrupts import StopFlag, TrainingStopped
+from foundation.interrupts import TrainingStopped
 from foundation.random_state import random_state
 from foundation.schedule import Schedule
 from foundation.snapshots import to_storable
-from tests.fault_injection import digests
+from tests.fault_injection import digests, stopping_after
 from tests.ppo_runs import assert_same_ppo_runs
 
 RUN_RECORDS = {"distill.json", "gpt.json"}
 """Run summaries: they hold the wall time, the finishing date and the step a call resumed from (a stop changes them)."""
 
 TIMED = ("events.out.tfevents", *RUN_RECORDS)
-
-
-class _StopAfter(StopFlag):
-    """A stop request that arrives after ``steps`` optimiser steps (the loop asks once per step)."""
-
-    def __init__(self, steps: int) -> None:
-        super().__init__()
-        self.left = steps
-
-    @property
-    def requested(self) -> bool:
-        self.left -= 1
-        if self.left == 0:
-            self.signal = 15
-        return self.signal is not None
-
-
-def _stopping_after(steps: int):
-    @contextlib.contextmanager
-    def stop_requests() -> Iterator[StopFlag]:
-        yield _StopAfter(steps)
-
-    return stop_requests
 
 
 def _npmp(data: Path, out: Path, trainer: TrainerConfig) -> None:
@@ -88,7 +63,7 @@ def test_a_stopped_run_resumes_to_the_uninterrupted_runs_files(job, rollout_dir,
     out.rename(tmp_path / "whole")
 
     with monkeypatch.context() as patched:
-        patched.setattr(trainer_module, "stop_requests", _stopping_after(13))
+        patched.setattr(trainer_module, "stop_requests", stopping_after(13))
         with pytest.raises(TrainingStopped, match="stopped at step 13 of 30"):
             job(rollout_dir, out, trainer)
     job(rollout_dir, out, trainer)
@@ -124,7 +99,7 @@ def test_an_expert_stopped_mid_rollout_resumes_to_the_uninterrupted_runs_weights
     out.rename(tmp_path / "whole")
 
     with monkeypatch.context() as patched:
-        patched.setattr(expert_training, "stop_requests", _stopping_after(300))  # at about step 600 of 768
+        patched.setattr(expert_training, "stop_requests", stopping_after(300))  # at about step 600 of 768
         with pytest.raises(TrainingStopped, match="stopped at step 512 on SIGTERM"):
             expert_training.train_expert(snippet, out, config, progress=False)
     expert = expert_dir_for(out, snippet)

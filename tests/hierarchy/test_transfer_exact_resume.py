@@ -8,47 +8,22 @@ running returns, the random generators and the logged values the adaptive step s
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
-from collections.abc import Iterator
 
 import pytest
 
 import hierarchy.transfer.training as training
 from foundation.config_files import with_settings
-from foundation.interrupts import StopFlag, TrainingStopped
+from foundation.interrupts import TrainingStopped
 from hierarchy.transfer import train_transfer
 from hierarchy.transfer.run_folder import CHECKPOINT_DIR, RESUME_FILE
-from tests.fault_injection import digests
+from tests.fault_injection import digests, stopping_after
 from tests.ppo_runs import assert_same_ppo_runs
 
 from .test_decoder import small_decoder
 from .transfer_settings import TINY
 
 TASK = {"max_steps": 30}
-
-
-class _StopAfter(StopFlag):
-    """A stop request that arrives at the ``calls``-th question (the boundary callback asks once per step)."""
-
-    def __init__(self, calls: int) -> None:
-        super().__init__()
-        self.left = calls
-
-    @property
-    def requested(self) -> bool:
-        self.left -= 1
-        if self.left == 0:
-            self.signal = 15
-        return self.signal is not None
-
-
-def _stopping_after(calls: int):
-    @contextlib.contextmanager
-    def stop_requests() -> Iterator[StopFlag]:
-        yield _StopAfter(calls)
-
-    return stop_requests
 
 
 def test_a_transfer_run_stopped_mid_rollout_resumes_to_the_uninterrupted_runs_policy(
@@ -63,7 +38,7 @@ def test_a_transfer_run_stopped_mid_rollout_resumes_to_the_uninterrupted_runs_po
     out.rename(tmp_path / "whole")
 
     with monkeypatch.context() as patched:
-        patched.setattr(training, "stop_requests", _stopping_after(50))  # at step 100 of the rollout 64-128
+        patched.setattr(training, "stop_requests", stopping_after(50))  # at step 100 of the rollout 64-128
         with pytest.raises(TrainingStopped, match="stopped at step 64 on SIGTERM"):
             train_transfer("velocity_control", out, decoder, config, TASK, progress=False)
     assert (out / CHECKPOINT_DIR / RESUME_FILE).is_file()
@@ -79,7 +54,7 @@ def test_a_transfer_run_stopped_mid_rollout_resumes_to_the_uninterrupted_runs_po
 def test_a_checkpoint_written_before_resume_files_still_resumes_with_new_episodes(tmp_path, monkeypatch, capsys):
     config = dataclasses.replace(TINY, total_steps=256)
     with monkeypatch.context() as patched:
-        patched.setattr(training, "stop_requests", _stopping_after(50))
+        patched.setattr(training, "stop_requests", stopping_after(50))
         with pytest.raises(TrainingStopped):
             train_transfer("velocity_control", tmp_path / "run", None, config, TASK, progress=False)
     checkpoint = tmp_path / "run" / CHECKPOINT_DIR
