@@ -113,10 +113,11 @@ def card_page_name(name: str, kind: str = "decoder") -> str:
     """The documentation page of shipped decoder ``name``'s card (``kind`` ``prior``: of its latent prior).
 
     ``kind`` ``policy``: of shipped task policy ``name`` (``synthetic-v3/velocity_control`` has
-    ``task-policy-synthetic-v3-velocity_control.md``).
+    ``task-policy-synthetic-v3-velocity_control.md``); ``expert``: of shipped snippet expert ``name``
+    (``expert-synthetic-v3-SYN_walk_slow-0-182.md``); ``gpt``: of shipped motion GPT ``name`` (``gpt-NAME.md``).
     """
-    if kind == "policy":
-        return f"task-policy-{name.replace('/', '-')}.md"
+    if kind in ("policy", "expert", "gpt"):
+        return f"{'task-policy' if kind == 'policy' else kind}-{name.replace('/', '-')}.md"
     return f"{name}-prior.md" if kind == "prior" else f"{name}.md"
 
 

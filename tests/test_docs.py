@@ -186,6 +186,9 @@ def test_slugs_follow_github_and_repeat_with_suffixes():
 def test_model_cards_are_rendered_from_the_shipped_files():
     import hashlib
 
+    from distill.experts.files import ExpertDir
+    from distill.experts.shipped import shipped_experts
+    from distill.gpt.shipped import shipped_gpts
     from hierarchy.card_markdown import SECTIONS
     from hierarchy.card_page import card_page
     from hierarchy.decoder import load_decoder
@@ -199,6 +202,11 @@ def test_model_cards_are_rendered_from_the_shipped_files():
     files.update({f"{name}-prior.md": path for name, path in shipped_priors().items()})
     policies = {f"task-policy-{name.replace('/', '-')}.md": path for name, path in shipped_task_policies().items()}
     files.update(policies)
+    experts = {
+        f"expert-{name.replace('/', '-')}.md": ExpertDir(path).sidecar for name, path in shipped_experts().items()
+    }
+    files.update(experts)
+    files.update({f"gpt-{name}.md": path for name, path in shipped_gpts().items()})
     assert set(pages) == set(files)
     for page_name, path in files.items():
         page = pages[page_name]
@@ -210,9 +218,13 @@ def test_model_cards_are_rendered_from_the_shipped_files():
         assert card is not None and card["summary"] in pages[f"{name}.md"]
     index = (DOCS / "models" / "index.md").read_text()
     assert f"]({generated_pages.TASK_POLICIES_PAGE})" in index
-    assert all(f"]({page_name})" in index for page_name in pages if page_name not in policies)  # every decoder card
+    assert f"]({generated_pages.SNIPPET_EXPERTS_PAGE})" in index
+    listed_elsewhere = {**policies, **experts}
+    assert all(f"]({name})" in index for name in pages if name not in listed_elsewhere)  # decoders, priors, GPTs
     listed = generated_pages.task_policies_page()
     assert all(f"]({page_name})" in listed for page_name in policies)  # and the task policies' page every policy's
+    listed = generated_pages.snippet_experts_page()
+    assert all(f"]({page_name})" in listed for page_name in experts)  # and the experts' page every expert's
 
 
 def test_each_shipped_task_policy_gets_a_page_and_a_row_and_none_gets_none(tmp_path, monkeypatch):
@@ -231,7 +243,7 @@ def test_each_shipped_task_policy_gets_a_page_and_a_row_and_none_gets_none(tmp_p
     source = TaskPolicy(spec, np.zeros(4), np.ones(4), 6).save(tmp_path / "policy.safetensors")
     shipped = tmp_path / "pretrained" / "policies" / "tiny-v1" / "go_to_target.safetensors"
     package_task_policy(source, shipped, {"summary": "reaches targets", "scores": {"targets_reached": 0.5}})
-    pages = generated_pages.model_pages()
+    pages = {name: page for name, page in generated_pages.model_pages().items() if name.startswith("task-policy-")}
     assert pages == {"task-policy-tiny-v1-go_to_target.md": card_page(shipped, generated_pages.doc_links())}
     listed = generated_pages.task_policies_page()
     assert "| `tiny-v1/go_to_target` | `go_to_target` | `tiny-v1` | reaches targets |" in listed

@@ -63,7 +63,10 @@ class FakeStages:
         self.shipped_experts: list[str] = []  # none ship unless a test says so
         monkeypatch.setattr(pipeline, "shipped_expert_names", lambda group: list(self.shipped_experts))
         monkeypatch.setattr(pipeline, "_experts_digest", lambda names: dict.fromkeys(names, "digest"))
-        stages = ("shipped_velocity", "shipped_experts", "playback", "experts", "dataset", "distill", "transfer")
+        self.shipped_gpt: Path | None = None  # no GPT ships unless a test says so
+        monkeypatch.setattr(pipeline, "shipped_gpt_file", lambda name: self.shipped_gpt)
+        shipped = ("shipped_velocity", "shipped_experts", "shipped_gpt")
+        stages = (*shipped, "playback", "experts", "dataset", "distill", "transfer")
         for name in (*stages, "record", "plots"):
             monkeypatch.setattr(pipeline, f"{name}_stage", getattr(self, f"_{name}"))
 
@@ -80,6 +83,11 @@ class FakeStages:
     def _shipped_experts(self, config):
         self._call("shipped_experts")
         return shipped_experts_run(self.shipped_experts)
+
+    def _shipped_gpt(self, recording: Path, config):
+        self._call("shipped_gpt")
+        recording.write_text("")
+        return shipped_gpt_run(str(recording))
 
     def _playback(self, snippets, library, config):
         self._call("playback")
@@ -318,6 +326,25 @@ def shipped_velocity_run(recording: str = "s.rrd", slope: float = 0.8, mean_retu
     }
 
 
+def shipped_gpt_run(recording: str = "g.rrd", gpt: float = 120.0, prior: float = 60.0, hold: float = 0.0) -> dict:
+    """The shipped GPT's stage: mean moving steps of each completer (2 snippets, 6 contexts each)."""
+    moving = {"gpt": gpt, "prior": prior, "hold": hold}
+    return {
+        "gpt": "synthetic-v3",
+        "experts": "synthetic-v3",
+        "contexts": 6,
+        "prompt_steps": 32,
+        "max_steps": 500,
+        "overall": {
+            name: {"deterministic": {"moving_mean": steps, "moving_mean_seconds": steps * 0.03, "mean_seconds": 3.0}}
+            for name, steps in moving.items()
+        },
+        "per_snippet": {"SYN_walk_slow-0-182": moving, "SYN_wave-0-196": moving},
+        "recording": recording,
+        "recorded_snippet": "SYN_walk_slow-0-182",
+    }
+
+
 def fabricated_summary(
     expert_reward: float = 0.7,
     fraction: float = 0.6,
@@ -541,3 +568,38 @@ def test_a_shipped_expert_that_falls_early_is_named_in_the_verdict(lengths, word
     summary["shipped"]["experts"] = shipped_experts_run(names, lengths)
     verdict = summary_verdicts(summary)["shipped"]["experts"]
     assert verdict["verdict"] == words and "SYN_wave-0-196" in verdict["not_tracking"]
+
+
+def test_a_shipped_gpt_is_shown_and_judged_after_the_shipped_experts(fakes, tmp_path, capsys):
+    fakes.shipped_experts = ["synthetic-v3/SYN_walk_slow-0-182", "synthetic-v3/SYN_wave-0-196"]
+    without = run_quickstart(tiny(tmp_path))
+    assert "gpt" not in without["shipped"] and fakes.calls["shipped_gpt"] == 0
+    capsys.readouterr()
+    fakes.shipped_gpt = tmp_path / "gpt.safetensors"
+    fakes.shipped_gpt.write_text("a shipped GPT")
+    summary = run_quickstart(tiny(tmp_path))  # the GPT ships now: its stage runs, the others are read
+    assert fakes.calls["shipped_gpt"] == 1 and fakes.calls["shipped_experts"] == 1
+    verdict = summary["verdicts"]["shipped"]["gpt"]
+    assert verdict["verdict"] == "keeps moving longer than both baselines" and verdict["contexts"] == 12
+    out = capsys.readouterr().out
+    assert "motion completion (GPT synthetic-v3): keeps moving longer than both baselines (keeps moving 3.6 s" in out
+    assert out.index("holding the last pose") < out.index("THE PIPELINE AT SMALL SCALE")
+    fakes.shipped_gpt.write_text("another shipped GPT")
+    run_quickstart(tiny(tmp_path))  # a new GPT file reruns its stage alone
+    assert fakes.calls["shipped_gpt"] == 2 and fakes.calls["shipped_experts"] == 1
+
+
+@pytest.mark.parametrize(
+    ("gpt", "prior", "hold", "words"),
+    [
+        (120.0, 60.0, 0.0, "keeps moving longer than both baselines"),
+        (60.5, 60.0, 0.0, "keeps moving about as long as the decoder driven by its latent prior"),
+        (30.0, 10.0, 45.0, "stops moving sooner than holding the last pose"),
+    ],
+)
+def test_the_gpt_verdict_compares_with_the_longer_moving_baseline(gpt, prior, hold, words):
+    summary = fabricated_summary(shipped=shipped_velocity_run())
+    summary["shipped"]["experts"] = shipped_experts_run(["synthetic-v3/SYN_walk_slow-0-182"])
+    summary["shipped"]["gpt"] = shipped_gpt_run(gpt=gpt, prior=prior, hold=hold)
+    verdict = summary_verdicts(summary)["shipped"]["gpt"]
+    assert verdict["verdict"] == words and verdict["moving_seconds"]["gpt"] == pytest.approx(gpt * 0.03)

@@ -6,7 +6,9 @@
 * ``models/<name>.md``: one model card per shipped decoder, latent prior and task policy, rendered from the file
   by :func:`hierarchy.card_page.card_page` (what ``mocap-hierarchy decoder card`` prints), so the page, the command
   and the file cannot disagree;
-* ``models/task-policies.md``: the shipped task policies, each with its card (or the note that none is shipped).
+* ``models/task-policies.md``: the shipped task policies, each with its card (or the note that none is shipped);
+* ``models/expert-GROUP-SNIPPET.md`` and ``models/gpt-NAME.md``: the card of every shipped snippet expert and motion
+  GPT (what ``expert card`` and ``gpt card`` print), and ``models/snippet-experts.md`` listing the experts.
 
 Sphinx writes them before reading the sources (``builder-inited``); the files are ignored by git.
 ``python docs/_ext/generated_pages.py`` writes them without building the site.
@@ -234,10 +236,16 @@ def card_of_file(path: Path) -> str:
 
 
 def model_pages() -> dict[str, str]:
-    """``{file name: page}`` of every shipped decoder, prior and task policy.
+    """``{file name: page}`` of every shipped decoder, prior, task policy, snippet expert and motion GPT.
 
-    ``NAME.md``, ``NAME-prior.md`` and ``task-policy-DECODER-TASK.md`` (none when no task policy is shipped).
+    ``NAME.md``, ``NAME-prior.md``, ``task-policy-DECODER-TASK.md``, ``expert-GROUP-SNIPPET.md`` and
+    ``gpt-NAME.md`` (none of a kind that is not shipped).
     """
+    import distill.expert_card  # registers the expert card builder
+    import distill.gpt.card  # noqa: F401  (registers the GPT card builder)
+    from distill.experts.files import ExpertDir
+    from distill.experts.shipped import shipped_experts
+    from distill.gpt.shipped import shipped_gpts
     from hierarchy.card_page import card_page_name
     from hierarchy.latent_prior import shipped_priors
     from hierarchy.pretrained import pretrained_decoders, shipped_task_policies
@@ -250,7 +258,55 @@ def model_pages() -> dict[str, str]:
             pages[card_page_name(name, "prior")] = card_of_file(priors[name])
     for name, path in shipped_task_policies().items():
         pages[card_page_name(name, "policy")] = card_of_file(path)
+    for name, path in shipped_experts().items():
+        pages[card_page_name(name, "expert")] = card_of_file(ExpertDir(path).sidecar)
+    for name, path in shipped_gpts().items():
+        pages[card_page_name(name, "gpt")] = card_of_file(path)
     return pages
+
+
+SNIPPET_EXPERTS_PAGE = "snippet-experts.md"
+"""The page under ``models/`` that lists the shipped snippet experts (linked from ``models/index.md``)."""
+
+
+def snippet_experts_page() -> str:
+    """The shipped snippet experts: name and scores of each, linked to its card."""
+    from distill.experts.loading import load_expert
+    from distill.experts.shipped import shipped_experts
+    from hierarchy.card_markdown import table
+    from hierarchy.card_page import card_page_name
+
+    shipped = shipped_experts()
+    lines = [
+        "# Shipped snippet experts",
+        "",
+        "Clip-tracking experts shipped as package data (`distill/experts/pretrained/GROUP/SNIPPET/`), one group per",
+        "decoder they were distilled into, loadable by name wherever an expert directory is taken:",
+        "`mocap-hierarchy expert eval synthetic-v3/SYN_walk_slow-0-182`, `rollout --experts synthetic-v3` (a group",
+        "names all its experts), `record --policy NAME`. Nothing is downloaded. How they were trained and how the",
+        "decoder is rebuilt from them: [the synthetic release](../guides/synthetic-release.md).",
+        "",
+    ]
+    if not shipped:
+        return "\n".join([*lines, "No snippet expert is shipped with this version yet.", ""])
+    rows = []
+    for name in shipped:
+        card = (load_expert(name).spec.provenance.get("model_card") or {}).get("scores", {})
+        cells = [f"{card[key]:.3f}" if isinstance(card.get(key), float | int) else "-" for key in SCORE_KEYS]
+        rows.append([f"`{name}`", *cells, f"[card]({card_page_name(name, 'expert')})"])
+    headers = ["expert", "normalised reward", "normalised length", "success", "card"]
+    pages = [card_page_name(name, "expert").removesuffix(".md") for name in shipped]
+    lines += [
+        "Scores over the paper's protocol: 1000 episodes from random frames with action noise 0.1.",
+        "",
+        *table(headers, rows),
+        "",
+    ]
+    return "\n".join([*lines, "```{toctree}", ":maxdepth: 1", ":hidden:", "", *pages, "```", ""])
+
+
+SCORE_KEYS = ("normalized_reward", "normalized_length", "success")
+"""The card scores the snippet experts' page lists."""
 
 
 TASK_POLICIES_PAGE = "task-policies.md"
@@ -298,6 +354,7 @@ def generated_pages() -> dict[Path, str]:
     pages = {DOCS / "reference" / "cli.md": cli_page(), DOCS / "reference" / "configs.md": configs_page()}
     pages.update({DOCS / "models" / name: text for name, text in model_pages().items()})
     pages[DOCS / "models" / TASK_POLICIES_PAGE] = task_policies_page()
+    pages[DOCS / "models" / SNIPPET_EXPERTS_PAGE] = snippet_experts_page()
     return pages
 
 

@@ -36,6 +36,10 @@ class QuickstartConfig:
         skill_steps: Step limit of those episodes and of the demonstration (1000 steps = 30 s).
         shipped_experts: The group of shipped snippet experts shown tracking their snippets (``skill_episodes``
             episodes each, the paper's protocol); skipped when no such group ships.
+        shipped_gpt: The shipped motion GPT shown completing the snippets of ``shipped_experts`` (prompted by
+            them) against two baselines; skipped unless both ship.
+        completion_contexts: Start frames per snippet of that comparison (times ``scale``).
+        completion_snippet: The snippet whose completion by the GPT is recorded.
         episodes_per_snippet: Playback episodes rolled per snippet.
         expert_snippets: Snippets that get an expert.
         expert_steps: Environment steps per expert.
@@ -66,6 +70,9 @@ class QuickstartConfig:
     skill_episodes: int = 20
     skill_steps: int = 1000
     shipped_experts: str = "synthetic-v3"
+    shipped_gpt: str = "synthetic-v3"
+    completion_contexts: int = 6
+    completion_snippet: str = "SYN_walk_slow-0-182"
     episodes_per_snippet: int = 3
     expert_snippets: tuple[str, ...] = ("SYN_wave-0-196", "SYN_walk_slow-0-182", "SYN_squat-0-155")
     expert_steps: int = 16_384

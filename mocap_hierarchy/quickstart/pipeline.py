@@ -15,7 +15,13 @@ from mocap_hierarchy.quickstart.config import MODE_LABELS, NO_PRIOR, OWN_DECODER
 from mocap_hierarchy.quickstart.plots import plots_stage
 from mocap_hierarchy.quickstart.records import STAGES_DIR, RunLog, StageRunner, settings_digest
 from mocap_hierarchy.quickstart.report import print_summary
-from mocap_hierarchy.quickstart.shipped import shipped_expert_names, shipped_experts_stage, shipped_velocity_stage
+from mocap_hierarchy.quickstart.shipped import (
+    shipped_expert_names,
+    shipped_experts_stage,
+    shipped_gpt_file,
+    shipped_gpt_stage,
+    shipped_velocity_stage,
+)
 from mocap_hierarchy.quickstart.stages import (
     dataset_stage,
     distill_stage,
@@ -85,6 +91,20 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
             {**pick("shipped_experts", "skill_episodes", "scale", "seed"), "experts": _experts_digest(experts_shipped)},
             functools.partial(shipped_experts_stage, config),
         )
+        gpt_file = shipped_gpt_file(config.shipped_gpt)
+        if gpt_file is not None:
+            shipped["gpt"] = stages.run(
+                "shipped_gpt",
+                "shipped motion GPT",
+                {
+                    **pick("shipped_gpt", "shipped_experts", "completion_contexts", "completion_snippet", "scale"),
+                    "seed": config.seed,
+                    "gpt": file_sha256(gpt_file),
+                    "experts": _experts_digest(experts_shipped),
+                },
+                functools.partial(shipped_gpt_stage, out / "shipped_gpt_completion.rrd", config),
+                outputs=lambda result: [result["recording"]],
+            )
     playback = stages.run(
         "playback",
         "playback",

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, MODE_LABELS
 from mocap_hierarchy.quickstart.records import job_runs
+from mocap_hierarchy.quickstart.shipped import COMPLETION_BASELINES
 from mocap_hierarchy.quickstart.verdicts import reward_per_step
 from tasks.tracking.metrics import TRACKING_METRICS, aggregate, format_metrics
+from tasks.walker import CONTROL_TIMESTEP
 
 
 def print_summary(summary: dict) -> None:
@@ -17,6 +19,8 @@ def print_summary(summary: dict) -> None:
         _print_shipped_velocity(shipped["velocity_control"])
         if "experts" in shipped:
             _print_shipped_experts(shipped["experts"])
+        if "gpt" in shipped:
+            _print_shipped_gpt(shipped["gpt"])
         print("\nTHE PIPELINE AT SMALL SCALE (every stage runs and learns; budgets far below the shipped skills')")
     playback = {row["snippet"]: row for row in summary["playback"]}
     print(
@@ -95,6 +99,14 @@ def print_summary(summary: dict) -> None:
                 f"  snippet experts ({experts['group']}): {experts['verdict']} (mean normalised length "
                 f"{experts['mean_length']:.3f}, each needs {experts['tracks_from_length']:g})"
             )
+        gpt = verdicts["shipped"].get("gpt")
+        if gpt:
+            moving = gpt["moving_seconds"]
+            print(
+                f"  motion completion (GPT {gpt['gpt']}): {gpt['verdict']} (keeps moving {moving['gpt']:.1f} s, "
+                f"{', '.join(f'{COMPLETION_BASELINES[n]} {moving[n]:.1f} s' for n in COMPLETION_BASELINES)}; "
+                f"{gpt['contexts']} contexts)"
+            )
     print("\nverdicts, the pipeline at small scale:" if "shipped" in verdicts else "\nverdicts:")
     groups: dict[str, list[str]] = {}
     for snippet, verdict in verdicts["experts"].items():
@@ -145,6 +157,25 @@ def _print_shipped_experts(run: dict) -> None:
             f"  {row['snippet']:<26}{row['normalized_reward']:>8.3f}{row['normalized_length']:>8.3f}"
             f"{row.get('success', float('nan')):>9.2f}{card[0]:>13}{card[1]:>13}"
         )
+
+
+def _print_shipped_gpt(run: dict) -> None:
+    """The shipped GPT's completions beside the baselines', per snippet and overall."""
+    print(
+        f"motion completion, GPT {run['gpt']}: {run['contexts']} contexts per snippet, each prompted "
+        f"{run['prompt_steps']} steps by the shipped expert, then the completer alone (deterministic, at most "
+        f"{run['max_steps'] - run['prompt_steps']} steps); seconds the humanoid kept moving:"
+    )
+    completers = ["gpt", *COMPLETION_BASELINES]
+    labels = {"gpt": "GPT", **COMPLETION_BASELINES}
+    print(f"  {'snippet':<26}" + "".join(f"{labels[name]:>{max(10, len(labels[name]) + 2)}}" for name in completers))
+    rows = {**run["per_snippet"], "overall": {n: run["overall"][n]["deterministic"]["moving_mean"] for n in completers}}
+    for snippet, moving in rows.items():
+        print(
+            f"  {snippet:<26}"
+            + "".join(f"{moving[name] * CONTROL_TIMESTEP:>{max(10, len(labels[name]) + 2)}.1f}" for name in completers)
+        )
+    print(f"  recording: the GPT completing {run['recorded_snippet']} ({run['recording']})")
 
 
 def _print_shipped_velocity(run: dict) -> None:

@@ -103,6 +103,66 @@ def shipped_experts_stage(config: QuickstartConfig) -> dict[str, Any]:
     return {"group": config.shipped_experts, "episodes": episodes, "action_noise": noise, "rows": rows}
 
 
+COMPLETION_BASELINES = {"prior": "the decoder driven by its latent prior", "hold": "holding the last pose"}
+"""The baselines the shipped GPT's completions are judged against, and how messages name them."""
+
+
+def shipped_gpt_file(name: str) -> Path | None:
+    """The file of shipped GPT ``name``, or None when no such GPT ships."""
+    from distill.gpt.shipped import shipped_gpts
+
+    return shipped_gpts().get(name)
+
+
+def shipped_gpt_stage(recording: Path, config: QuickstartConfig) -> dict[str, Any]:
+    """The shipped motion GPT completing the snippets of the shipped experts, against the two baselines.
+
+    Every shipped expert of ``config.shipped_experts`` prompts its snippet for 32 steps from
+    ``config.completion_contexts`` start frames (times ``scale``) spread over the snippet; then the GPT
+    ``config.shipped_gpt``, the decoder driven by its latent prior and the held last pose each act alone from
+    the same states (deterministic). One completion of ``config.completion_snippet`` is recorded to
+    ``recording``.
+    """
+    from distill.experts.loading import load_expert
+    from distill.gpt.completion import CompletionConfig, ExpertPrompt, complete_motions
+    from distill.gpt.completion_report import overall
+    from distill.gpt.model import load_gpt
+    from distill.gpt.shipped import resolve_gpt
+    from mocap_hierarchy.record import record
+
+    names = shipped_expert_names(config.shipped_experts)
+    contexts = max(2, round(config.completion_contexts * config.scale))
+    completion = CompletionConfig(
+        episodes=contexts, completers=("gpt", *COMPLETION_BASELINES), variants=("deterministic",), seed=config.seed
+    )
+    print(
+        f"\nshipped motion GPT {config.shipped_gpt}: completing {len(names)} snippets from {contexts} contexts each, "
+        f"after {completion.prompt_steps} steps of their shipped experts"
+    )
+    prompts = {name.split("/", 1)[1]: (lambda rows, expert=name: ExpertPrompt(load_expert(expert))) for name in names}
+    gpt_file = resolve_gpt(config.shipped_gpt)  # a path: the GPT shares its name with the decoder it came with
+    results = complete_motions(load_gpt(gpt_file), prompts, completion, progress=True)
+    demo = f"{config.shipped_experts}/{config.completion_snippet}"
+    if demo not in names:
+        demo = names[0]
+    print(f"recording the GPT completing {demo.split('/', 1)[1]}")
+    record("motion_completion", str(gpt_file), recording, seed=0, prompt=demo)
+    return {
+        "gpt": config.shipped_gpt,
+        "experts": config.shipped_experts,
+        "contexts": contexts,
+        "prompt_steps": completion.prompt_steps,
+        "max_steps": completion.max_steps,
+        "overall": overall(results),
+        "per_snippet": {
+            snippet: {completer: runs["deterministic"]["moving_mean"] for completer, runs in rows.items()}
+            for snippet, rows in results.items()
+        },
+        "recording": str(recording),
+        "recorded_snippet": demo.split("/", 1)[1],
+    }
+
+
 def _demo_steps(config: QuickstartConfig) -> int:
     """Control steps of the demonstration: a command period of the policy's task per speed, at most ``skill_steps``."""
     from hierarchy.task_policy import load_task_policy

@@ -6,7 +6,7 @@ import math
 from typing import Any
 
 from mocap_hierarchy.quickstart.config import EPISODE_LIMIT
-from mocap_hierarchy.quickstart.shipped import TRACKS_LENGTH
+from mocap_hierarchy.quickstart.shipped import COMPLETION_BASELINES, TRACKS_LENGTH
 
 FOLLOWS_REWARD = 0.5
 """Mean velocity-control reward per step from which a policy counted as following the command, in
@@ -44,7 +44,8 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
       whether its training return rose (``learning``);
     - ``shipped``: the same velocity-control rule for the shipped policy (``velocity_control``),
       in summaries that have the shipped-skills part; and, when snippet experts ship, whether they
-      track their snippets (``experts``: normalised length at least :data:`TRACKS_LENGTH` each).
+      track their snippets (``experts``: normalised length at least :data:`TRACKS_LENGTH` each); and, when
+      a GPT ships, whether its completions keep moving longer than both baselines' (``gpt``).
 
     The first three judge the pipeline run at small scale; ``shipped`` judges skills trained far longer.
     """
@@ -58,6 +59,8 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
         verdicts["shipped"] = {"velocity_control": _shipped_velocity_verdict(shipped["velocity_control"])}
         if "experts" in shipped:
             verdicts["shipped"]["experts"] = _shipped_experts_verdict(shipped["experts"])
+        if "gpt" in shipped:
+            verdicts["shipped"]["gpt"] = _shipped_gpt_verdict(shipped["gpt"])
     return verdicts
 
 
@@ -81,6 +84,30 @@ def _shipped_experts_verdict(run: dict) -> dict[str, Any]:
         "tracks_from_length": TRACKS_LENGTH,
         "mean_length": sum(lengths) / len(lengths) if lengths else float("nan"),
         "episodes": run["episodes"],
+    }
+
+
+def _shipped_gpt_verdict(run: dict) -> dict[str, Any]:
+    """The shipped GPT: whether its completions keep moving longer than the longer-moving baseline's."""
+    figures = {name: by_variant["deterministic"] for name, by_variant in run["overall"].items()}
+    gpt = figures["gpt"]["moving_mean_seconds"]
+    strongest = max(COMPLETION_BASELINES, key=lambda name: figures[name]["moving_mean_seconds"])
+    baseline = figures[strongest]["moving_mean_seconds"]
+    word = _compare(gpt, baseline)
+    if word == "above":
+        verdict = "keeps moving longer than both baselines"
+    elif word == "level with":
+        verdict = f"keeps moving about as long as {COMPLETION_BASELINES[strongest]}"
+    else:
+        verdict = f"stops moving sooner than {COMPLETION_BASELINES[strongest]}"
+    return {
+        "verdict": verdict,
+        "gpt": run["gpt"],
+        "moving_seconds": {name: figure["moving_mean_seconds"] for name, figure in figures.items()},
+        "upright_seconds": {name: figure["mean_seconds"] for name, figure in figures.items()},
+        "strongest_baseline": strongest,
+        "contexts": run["contexts"] * len(run["per_snippet"]),
+        "recording": run["recording"],
     }
 
 

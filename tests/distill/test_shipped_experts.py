@@ -335,3 +335,26 @@ def test_the_quickstart_evaluates_every_expert_of_a_shipped_group_beside_its_car
         0 < rows[snippet]["normalized_length"] <= 1
         and rows[snippet]["card_reward"] == CARD["scores"]["normalized_reward"]
     )
+
+
+def test_the_quickstart_completes_the_shipped_snippets_with_a_shipped_gpt_and_records_one(
+    ship, snippet, tmp_path, monkeypatch
+):
+    import distill.gpt.shipped as gpts
+    from mocap_hierarchy.quickstart import QuickstartConfig
+    from mocap_hierarchy.quickstart.shipped import shipped_gpt_file, shipped_gpt_stage
+    from tests.distill.test_gpt import random_gpt
+
+    folder = tmp_path / "gpts"
+    random_gpt().save(folder / "tiny-v1.safetensors")
+    monkeypatch.setattr(gpts, "SHIPPED_GPTS_FOLDER", folder)
+    assert shipped_gpt_file("tiny-v1") == folder / "tiny-v1.safetensors" and shipped_gpt_file("tiny-v2") is None
+    config = QuickstartConfig(
+        shipped_experts=GROUP, shipped_gpt="tiny-v1", completion_contexts=2, completion_snippet=snippet
+    )
+    result = shipped_gpt_stage(tmp_path / "completion.rrd", config)
+    assert set(result["per_snippet"]) == {snippet, OTHER} and result["contexts"] == 2
+    assert all(set(row) == {"gpt", "prior", "hold"} for row in result["per_snippet"].values())
+    figures = result["overall"]["gpt"]["deterministic"]
+    assert figures["episodes"] == 4 and 0 <= figures["moving_mean"] <= figures["mean"] <= 500 - 32
+    assert result["recorded_snippet"] == snippet and (tmp_path / "completion.rrd").stat().st_size > 0
