@@ -12,7 +12,8 @@ with weight decay, a model may also offer ``optimizer_groups(weight_decay)``
   a fingerprint of the settings; a rerun continues from it (settings that
   change the result must match) and ends with the files an uninterrupted run
   writes, byte for byte. Written atomically every ``checkpoint_every`` steps
-  and at the end.
+  and at the end. A batch source with state of its own (online distillation's buffer and
+  environments: :class:`ResumableBatches`) stores it there too.
   The checkpoint is read with ``torch.load(weights_only=True)``: tensors and
   plain containers only, no code.
 * **Logs**: a progress bar, TensorBoard scalars in ``out/tensorboard`` and the
@@ -32,10 +33,10 @@ import math
 import os
 import sys
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 import torch
@@ -53,6 +54,8 @@ from foundation.run_lock import run_lock
 
 CHECKPOINT = "checkpoint.pt"
 HISTORY = "history.json"
+BATCH_SOURCE = "batch_source"
+"""The checkpoint's entry holding a :class:`ResumableBatches` source's state."""
 
 
 _FREE = ("steps", "log_every", "checkpoint_every", "device")
@@ -129,6 +132,27 @@ class TrainingOutcome:
         return self.resumed_from == self.steps
 
 
+class ResumableBatches(Protocol):
+    """A batch source whose batches depend on more than the stream's position: state the checkpoint keeps.
+
+    Online distillation's (:class:`distill.npmp.online.OnlineBatches`): its buffer and environments.
+    """
+
+    def batches(
+        self, seed: int, batch_size: int, device: torch.device, start: int
+    ) -> Iterator[dict[str, torch.Tensor]]:
+        """The stream, as :func:`train`'s ``batches`` argument gives it."""
+        ...
+
+    def state_dict(self) -> dict[str, Any]:
+        """The state after the batches drawn so far: tensors and plain containers (read back weights-only)."""
+        ...
+
+    def load_state_dict(self, state: Mapping[str, Any]) -> None:
+        """Restores :meth:`state_dict`; called before a resumed run asks for its first batch."""
+        ...
+
+
 def train(
     model: nn.Module,
     batches: Callable[[int, int, torch.device, int], Iterator[dict[str, torch.Tensor]]],
@@ -137,6 +161,7 @@ def train(
     settings: dict[str, Any],
     progress: bool = True,
     description: str = "training",
+    source: ResumableBatches | None = None,
 ) -> TrainingOutcome:
     """Trains ``model`` (in place) with Adam, resuming from ``out/checkpoint.pt``.
 
@@ -152,6 +177,8 @@ def train(
             settings); stored in the checkpoint so a resume with other settings fails.
         progress: Show a progress bar.
         description: Progress bar label.
+        source: The batch source behind ``batches`` when it has state of its own: the checkpoint stores its
+            :meth:`~ResumableBatches.state_dict` and a resumed run restores it before drawing.
 
     Raises:
         CheckpointMismatchError: The folder holds a checkpoint of other settings.
@@ -177,6 +204,12 @@ def train(
     if state is not None:
         log.restore(state)
         _restore_random_state(state, device)
+        if source is not None:
+            if BATCH_SOURCE not in state:
+                raise CheckpointMismatchError(
+                    f"{out / CHECKPOINT} holds no batch source state; delete it to start over"
+                )
+            source.load_state_dict(state[BATCH_SOURCE])
     stream = batches(_sampling_seed(config.seed, place.rank), config.batch_size // place.world_size, device, step)
     guard = _DivergenceGuard(description, out / CHECKPOINT, step if state is not None else None)
     with stop_requests() as stop:
@@ -188,7 +221,7 @@ def train(
             stopping = stop.requested and place.world_size == 1  # under torchrun, every replica ends as it is told
             if place.is_main and (step % config.checkpoint_every == 0 or step == config.steps or stopping):
                 guard.check_weights(model, step)  # a checkpoint is written from finite weights only
-                _save_checkpoint(out, model, optimizer, step, resume_settings, log)
+                _save_checkpoint(out, model, optimizer, step, resume_settings, log, source)
                 guard.saved = step
             if stopping:
                 log.close()
@@ -389,7 +422,13 @@ def _load_checkpoint(path: Path, settings: dict[str, Any], config: TrainerConfig
 
 
 def _save_checkpoint(
-    out: Path, model: nn.Module, optimizer: torch.optim.Optimizer, step: int, settings: dict[str, Any], log: _Log
+    out: Path,
+    model: nn.Module,
+    optimizer: torch.optim.Optimizer,
+    step: int,
+    settings: dict[str, Any],
+    log: _Log,
+    source: ResumableBatches | None = None,
 ) -> None:
     record = settings_record(settings)
     device = next(model.parameters()).device
@@ -402,6 +441,8 @@ def _save_checkpoint(
         **log.saved(),
         **_random_state(device),
     }
+    if source is not None:
+        state[BATCH_SOURCE] = source.state_dict()
     with atomic_path(out / CHECKPOINT) as temporary:
         temporary.write_bytes(_checkpoint_bytes(state))
     write_json(out / HISTORY, log.history)
@@ -467,6 +508,7 @@ def train_on_dataset(
     outputs: tuple[str, ...],
     progress: bool = True,
     description: str = "training",
+    source: Callable[[Any, Any, nn.Module], ResumableBatches] | None = None,
 ) -> DatasetTraining:
     """Opens a rollout dataset, builds the model on its windows, trains it with :func:`train`.
 
@@ -487,6 +529,8 @@ def train_on_dataset(
         outputs: The final files; a finished run that has them all keeps them.
         progress: Show a progress bar.
         description: Progress bar label.
+        source: ``source(dataset, windows, model)`` makes the batch source when batches are not the dataset's
+            windows alone (online distillation mixes in what the model gathers); None: the windows.
     """
     from distill.dataset.reader import RolloutDataset
     from distill.dataset.sampler import WindowDataset
@@ -501,10 +545,14 @@ def train_on_dataset(
         files = [str(p.resolve()) for p in dataset.files]
         resume = {**settings, "sampler": asdict(sampler), "data": files}
 
+        mixed = source(dataset, windows, model) if source is not None else None
+
         def batches(seed: int, batch_size: int, device: torch.device, start: int) -> Iterator[dict[str, torch.Tensor]]:
+            if mixed is not None:
+                return mixed.batches(seed, batch_size, device, start)
             return windows.batches(batch_size, seed=seed, device=device, start=start)
 
-        outcome = train(model, batches, out, trainer, resume, progress=progress, description=description)
+        outcome = train(model, batches, out, trainer, resume, progress, description, mixed)
         finished = outcome.already_finished and all((out / name).is_file() for name in outputs)
         write = distributed_from_environment().is_main and not finished
         return DatasetTraining(model, outcome, files, len(dataset.episodes), write, dataset.snippets())

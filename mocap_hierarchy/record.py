@@ -152,7 +152,8 @@ def _gpt(task: str, path: Path, overrides: dict[str, Any], prompt: str | None) -
     gpt = load_gpt(path)
     expert = ExpertPrompt(load_expert(prompt))
     keys = tuple(dict.fromkeys([*gpt.spec.observation_sizes, *expert.keys]))
-    env = tasks.make(task, **{"snippets": (str(expert.expert.spec.snippet),), "observables": keys, **overrides})
+    settings = {"snippets": (str(expert.expert.spec.snippet),), "observables": keys, "ref_steps": expert.ref_steps}
+    env = tasks.make(task, **{**settings, **overrides})  # the prompt's reference steps, as `gpt complete` uses
     controller = CompletionController(gpt, expert, [env.unwrapped], context="cache")  # type: ignore[list-item]
     return env, lambda observation: controller.act([0], _batched(observation))[0], lambda: controller.new_episode(0)
 

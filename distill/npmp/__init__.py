@@ -5,7 +5,7 @@ from typing import TYPE_CHECKING
 from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
-    from distill.npmp.config import NpmpConfig, PolicyEvaluationConfig, default_sampler
+    from distill.npmp.config import NpmpConfig, OnlineDistillConfig, PolicyEvaluationConfig, default_sampler
     from distill.npmp.evaluation import evaluate_multi_clip, fraction_of_experts
     from distill.npmp.model import MultiClipPrompt, NpmpPolicy, NpmpSpec, load_policy
     from distill.npmp.training import DistillResult, train_npmp
@@ -16,6 +16,7 @@ __all__ = [
     "NpmpConfig",
     "NpmpPolicy",
     "NpmpSpec",
+    "OnlineDistillConfig",
     "PolicyEvaluationConfig",
     "default_sampler",
     "evaluate_multi_clip",
@@ -32,6 +33,7 @@ __getattr__, __dir__ = lazy_exports(
         "NpmpConfig": "distill.npmp.config",
         "NpmpPolicy": "distill.npmp.model",
         "NpmpSpec": "distill.npmp.model",
+        "OnlineDistillConfig": "distill.npmp.config",
         "PolicyEvaluationConfig": "distill.npmp.config",
         "default_sampler": "distill.npmp.config",
         "evaluate_multi_clip": "distill.npmp.evaluation",

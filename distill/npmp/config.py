@@ -7,10 +7,11 @@ re-export what they use.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from distill.dataset.config import SamplerConfig
 from foundation.activations import ACTIVATION_NAMES
+from foundation.schedule import Schedule
 from tasks.observable_sets import DECODER, OBSERVABLE_SETS
 
 
@@ -111,6 +112,66 @@ class NpmpConfig:
             raise ValueError(f"alpha must be in [0, 1), got {self.alpha}")
         if self.activation not in ACTIVATION_NAMES:
             raise ValueError(f"activation must be one of {', '.join(ACTIVATION_NAMES)}")
+
+
+@dataclass(frozen=True)
+class OnlineDistillConfig:
+    """Online (DAgger-style) distillation: the student acts, its snippets' experts label what it visits.
+
+    Used by ``mocap-hierarchy distill train --online`` (:mod:`distill.npmp.online`). Every ``collect_every``
+    optimiser steps, ``n_envs`` tracking environments (random starts on the dataset's snippets) move on by
+    ``collect_steps`` steps each. At each episode's start a draw decides who drives the whole episode: the
+    teacher (its snippet's expert, mean action plus ``teacher_noise``) with probability
+    ``teacher_probability`` at that step, else the student (the multi-clip policy, deterministic latents).
+    Every visited state is labelled with the teacher's mean action either way and kept in a buffer of the
+    rollout dataset's schema; ``online_fraction`` of each batch's windows come from it, the rest from the
+    rollout dataset.
+
+    Attributes:
+        experts: Expert directories, folders of them or shipped expert names: the teachers. Every snippet of
+            the rollout dataset needs its expert.
+        online_fraction: Share of each batch's windows drawn from the online buffer (rounded to whole windows);
+            the rest come from the rollout dataset.
+        teacher_probability: Probability that the teacher drives an episode starting at a given optimiser
+            step, a schedule (``linear:1@0,0@20k``: from 1 down to 0 at step 20,000, then 0).
+        teacher_noise: Standard deviation of the Gaussian noise on the teacher's mean action when it drives
+            (the paper's rollout noise, 0.1); the label stays the mean action.
+        n_envs: Tracking environments stepped in lockstep in this process.
+        collect_every: Optimiser steps between collections (the first is before step 0's batch).
+        collect_steps: Steps every environment moves on per collection (episodes carry over).
+        buffer_steps: Labelled steps the buffer keeps; the oldest segments go first.
+        min_steps: Random starts exclude the last ``min_steps + 1`` frames of a snippet (as the rollouts').
+        clips: Clip file; None takes the CMU file for ``CMU_*`` snippets and the synthetic library otherwise.
+        start_from: A ``policy.safetensors`` distilled from the same dataset with the same model settings whose
+            weights the student starts from (an offline distillation, say); None starts from fresh weights.
+    """
+
+    experts: tuple[str, ...] = ()
+    online_fraction: float = 0.5
+    teacher_probability: Schedule = field(
+        default_factory=lambda: Schedule(((0, 1.0), (20_000, 0.0)), interpolation="linear")
+    )
+    teacher_noise: float = 0.1
+    n_envs: int = 8
+    collect_every: int = 10
+    collect_steps: int = 32
+    buffer_steps: int = 50_000
+    min_steps: int = 9
+    clips: str | None = None
+    start_from: str | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "teacher_probability", Schedule.of(self.teacher_probability))
+        if not 0.0 <= self.online_fraction <= 1.0:
+            raise ValueError(f"online_fraction must be in [0, 1], got {self.online_fraction}")
+        if not all(0.0 <= value <= 1.0 for value in self.teacher_probability.values):
+            raise ValueError(f"teacher_probability must stay in [0, 1], got {self.teacher_probability}")
+        if self.teacher_noise < 0:
+            raise ValueError(f"teacher_noise must be >= 0, got {self.teacher_noise}")
+        if min(self.n_envs, self.collect_every, self.collect_steps, self.buffer_steps) < 1:
+            raise ValueError("n_envs, collect_every, collect_steps and buffer_steps must be positive")
+        if self.min_steps < 0:
+            raise ValueError(f"min_steps must be >= 0, got {self.min_steps}")
 
 
 def default_sampler() -> SamplerConfig:

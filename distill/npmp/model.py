@@ -325,3 +325,39 @@ def _gaussian_kl(mean: torch.Tensor, std: torch.Tensor, prior_mean: torch.Tensor
     variance_ratio = (std / prior_std) ** 2
     difference = ((mean - prior_mean) / prior_std) ** 2
     return 0.5 * (variance_ratio + difference - 1.0 - torch.log(variance_ratio)).sum(-1)
+
+
+def start_from(policy: NpmpPolicy, path: str | os.PathLike) -> None:
+    """Gives ``policy`` the weights of the policy file at ``path`` (a run that starts from another's result).
+
+    The file must hold the same architecture, inputs and observation statistics: a policy distilled from
+    the same dataset with the same model settings.
+
+    Raises:
+        FileNotFoundError: No such file.
+        PolicyFileError: The file is unreadable, or differs from ``policy`` (naming what differs).
+    """
+    loaded = load_policy(path)
+    mine, theirs = asdict(policy.spec), asdict(loaded.spec)
+    differing = [name for name in mine if name != "provenance" and _plain(mine[name]) != _plain(theirs[name])]
+    differing += [
+        name
+        for name in ("encoder_mean", "encoder_std", "decoder_mean", "decoder_std")
+        if not torch.equal(getattr(policy, name).cpu(), getattr(loaded, name))
+    ]
+    if differing:
+        raise PolicyFileError(
+            f"{path} cannot be a starting point here: its {', '.join(differing)} differ from this run's; start from "
+            "a policy.safetensors distilled from the same rollout dataset with the same model settings"
+        )
+    device = policy.encoder_mean.device
+    policy.load_state_dict({name: value.to(device) for name, value in loaded.state_dict().items()})
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with tuples as lists (a spec read from JSON holds lists)."""
+    if isinstance(value, dict):
+        return {key: _plain(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(item) for item in value]
+    return value

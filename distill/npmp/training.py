@@ -9,6 +9,10 @@
   on the run's inputs);
 * ``MODEL_CARD.md``: that card as Markdown (:func:`hierarchy.card_page.card_page` of the decoder file);
 * ``distill.json``: the settings and the outcome.
+
+With ``online`` settings (``distill train --online``), the student also acts in the tracking task and its
+snippets' experts label what it visits (:mod:`distill.npmp.online`); the card and ``distill.json`` record
+those settings, the teachers and what was collected.
 """
 
 from __future__ import annotations
@@ -22,8 +26,11 @@ from typing import Any
 
 from distill.dataset.reader import RolloutDataset
 from distill.dataset.sampler import SamplerConfig, WindowDataset
-from distill.npmp.config import default_sampler  # defined there (light), used and re-exported here
-from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec
+from distill.npmp.config import (  # defined there (light), used and re-exported here
+    OnlineDistillConfig,
+    default_sampler,
+)
+from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec, start_from
 from distill.trainer import (
     DatasetTraining,
     TrainerConfig,
@@ -33,6 +40,7 @@ from distill.trainer import (
     writer_lock,
 )
 from foundation.config_cli import dataclass_flags
+from foundation.config_files import config_to_dict
 from hierarchy.card_markdown import CARD_FILE, layers_text
 from hierarchy.card_page import write_card
 
@@ -62,6 +70,7 @@ def train_npmp(
     trainer: TrainerConfig | None = None,
     sampler: SamplerConfig | None = None,
     progress: bool = True,
+    online: OnlineDistillConfig | None = None,
 ) -> DistillResult:
     """Trains the multi-clip policy on a rollout dataset and writes the decoder file.
 
@@ -72,11 +81,18 @@ def train_npmp(
         trainer: Loop settings (defaults, the paper's: Adam 5e-4, batch 256, clip 1).
         sampler: Window settings; observations are always standardised.
         progress: Show progress bars.
+        online: Online (DAgger-style) distillation's settings (:mod:`distill.npmp.online`); None trains on the
+            dataset alone.
+
+    Raises:
+        MissingTeachersError: ``online`` without an expert for every snippet of the dataset (checked before
+            anything is trained).
     """
     npmp = npmp or NpmpConfig()
     trainer = trainer or TrainerConfig()
     sampler = dataclasses.replace(sampler or default_sampler(), normalize_observations=True, actions="mean")
     out = Path(out)
+    teaching = _Teaching.prepare(data, online) if online is not None else None
 
     def groups(dataset: RolloutDataset) -> dict[str, dict[str, int]]:
         return {
@@ -93,12 +109,19 @@ def train_npmp(
             ref_steps=tuple(int(s) for s in dataset.ref_steps),
             action_size=windows.action_size,
         )
-        return NpmpPolicy(spec, means["encoder"], stds["encoder"], means["decoder"], stds["decoder"])
+        policy = NpmpPolicy(spec, means["encoder"], stds["encoder"], means["decoder"], stds["decoder"])
+        if teaching is not None and teaching.config.start_from:
+            start_from(policy, teaching.config.start_from)
+        return policy
 
     with writer_lock(out):  # one run per output folder
-        settings = {"npmp": asdict(npmp)}
+        settings = {"npmp": asdict(npmp), **(teaching.settings() if teaching is not None else {})}
         outputs = (DECODER_FILE, POLICY_FILE, CARD_FILE)
-        run = train_on_dataset(data, out, trainer, sampler, groups, build, settings, outputs, progress, "distilling")
+        source = teaching.source(trainer) if teaching is not None else None
+        description = "distilling online" if teaching is not None else "distilling"
+        run = train_on_dataset(
+            data, out, trainer, sampler, groups, build, settings, outputs, progress, description, source
+        )
         if not run.write:  # under torchrun rank 0 alone writes; a finished run keeps its files (and their SHA-256)
             return DistillResult(out / DECODER_FILE, out / POLICY_FILE, run.outcome)
         facts = {
@@ -114,15 +137,66 @@ def train_npmp(
         policy.cpu().eval()
         policy.spec = dataclasses.replace(policy.spec, provenance=facts)
         policy_path = policy.save(out / POLICY_FILE)
-        card = decoder_card(data, out, npmp, trainer, sampler, run)
+        collected = teaching.collected() if teaching is not None else None
+        card = decoder_card(data, out, npmp, trainer, sampler, run, online, collected)
         decoder_path = policy.export_decoder(**facts, model_card=card).save(out / DECODER_FILE)
         write_card(decoder_path, out / CARD_FILE)
-        write_run_summary(out / "distill.json", settings, trainer, sampler, run)
+        extra = {"online_collection": collected} if collected is not None else {}
+        write_run_summary(out / "distill.json", settings, trainer, sampler, run, **extra)
         return DistillResult(decoder_path, policy_path, run.outcome)
 
 
+@dataclass
+class _Teaching:
+    """Online distillation's part of a run: its settings, the teachers, and the batch source once built."""
+
+    config: OnlineDistillConfig
+    teachers: dict[str, Any]
+    fingerprints: dict[str, str]
+    batches: Any = None
+
+    @classmethod
+    def prepare(cls, data: Any, config: OnlineDistillConfig) -> _Teaching:
+        """Loads the teachers of the dataset's snippets (refused before training when some are missing)."""
+        from distill.npmp.teachers import load_teachers
+
+        dataset = RolloutDataset(data)
+        try:
+            snippets = dataset.snippets()
+        finally:
+            dataset.close()
+        teachers, fingerprints = load_teachers(config.experts, snippets)
+        return cls(config, teachers, fingerprints)
+
+    def settings(self) -> dict[str, Any]:
+        """What the resume check adds: the online settings and the teachers' weights (SHA-256)."""
+        return {"online": config_to_dict(self.config), "teachers": self.fingerprints}
+
+    def source(self, trainer: TrainerConfig):
+        """``source(dataset, windows, model)`` for :func:`distill.trainer.train_on_dataset`."""
+        from distill.npmp.online import online_batches
+
+        def make(dataset: RolloutDataset, windows: WindowDataset, model: Any):
+            del dataset
+            self.batches = online_batches(model, self.teachers, windows, self.config, trainer)
+            return self.batches
+
+        return make
+
+    def collected(self) -> dict[str, int]:
+        """What the environments gathered over the whole run (resumed parts included)."""
+        return self.batches.summary() if self.batches is not None else {}
+
+
 def decoder_card(
-    data: Any, out: Path, npmp: NpmpConfig, trainer: TrainerConfig, sampler: SamplerConfig, run: DatasetTraining
+    data: Any,
+    out: Path,
+    npmp: NpmpConfig,
+    trainer: TrainerConfig,
+    sampler: SamplerConfig,
+    run: DatasetTraining,
+    online: OnlineDistillConfig | None = None,
+    collected: dict[str, int] | None = None,
 ) -> dict[str, Any]:
     """The model card a distillation stores in its decoder file (:mod:`hierarchy.model_card`).
 
@@ -135,6 +209,7 @@ def decoder_card(
         *dataclass_flags(trainer),
         *dataclass_flags(npmp),
         *dataclass_flags(sampler, default_sampler(), exclude=("normalize_observations", "actions")),
+        *(["--online", *dataclass_flags(online)] if online is not None else []),
     ]
     command = (
         ["mocap-hierarchy", "distill", "train", "--data", os.fspath(data), "--out", os.fspath(out)] if single else []
@@ -142,10 +217,10 @@ def decoder_card(
     windows = f"batch {trainer.batch_size} windows of {sampler.window} steps ({sampler.weighting} weighting)"
     encoder, decoder = layers_text(npmp.encoder_layers), layers_text(npmp.decoder_layers)
     sizes = f"encoder {encoder}, decoder {decoder}, latent {npmp.latent_size}, KL weight {npmp.kl_weight:g}"
-    return {
+    card: dict[str, Any] = {
         "summary": (
-            f"{decoder} decoder distilled from {run.episodes} rollout episodes of "
-            f"{len(run.snippets)} snippets in {run.outcome.steps:,} optimiser steps"
+            f"{decoder} decoder distilled{' online' if online is not None else ''} from {run.episodes} rollout "
+            f"episodes of {len(run.snippets)} snippets in {run.outcome.steps:,} optimiser steps"
         ),
         "data": {
             "rollout dataset": os.fspath(data) if single else [os.fspath(part) for part in data],
@@ -162,3 +237,27 @@ def decoder_card(
             "(`--json`), and `mocap-hierarchy decoder package --scores` records the scores in the card."
         ],
     }
+    if online is not None:
+        card["budgets"]["online"] = _online_budget(online, trainer, collected or {})
+        card["notes"].append(
+            "Distilled online (DAgger-style): the student acted in the tracking task and its snippets' experts "
+            "labelled the states it visited. Whether this beats offline distillation is not yet measured."
+        )
+    return card
+
+
+def _online_budget(online: OnlineDistillConfig, trainer: TrainerConfig, collected: dict[str, int]) -> str:
+    """The online part of a card's budget: the settings that shape the data, and what was collected."""
+    share = round(online.online_fraction * trainer.batch_size)
+    gathered = (
+        f"; {collected['collected_steps']:,} states collected ({collected['teacher_episodes']:,} episodes driven "
+        f"by the teacher, {collected['student_episodes']:,} by the student)"
+        if collected
+        else ""
+    )
+    return (
+        f"{online.n_envs} environments, {online.collect_steps} steps each every {online.collect_every} optimiser "
+        f"steps; teacher probability per episode {online.teacher_probability} (teacher noise "
+        f"{online.teacher_noise:g}); {share} of {trainer.batch_size} windows per batch from a buffer of "
+        f"{online.buffer_steps:,} steps" + gathered
+    )

@@ -41,6 +41,7 @@ CONFIG_CLASSES = (
     "distill.dataset.config.SamplerConfig",
     "distill.trainer_config.TrainerConfig",
     "distill.npmp.config.NpmpConfig",
+    "distill.npmp.config.OnlineDistillConfig",
     "distill.npmp.config.PolicyEvaluationConfig",
     "distill.npmp.config.LatentPriorConfig",
     "distill.gpt.config.GptConfig",

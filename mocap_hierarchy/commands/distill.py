@@ -13,6 +13,7 @@ from foundation.config_cli import (
     add_subcommands,
     dataclass_from_args,
     file_in_folder,
+    given_fields,
 )
 
 
@@ -36,29 +37,43 @@ def add_commands(subparsers: LazySubParsers) -> None:
 
 def _build_train(parser: argparse.ArgumentParser) -> None:
     from distill.dataset.config import SamplerConfig
-    from distill.npmp.config import NpmpConfig, default_sampler
+    from distill.npmp.config import NpmpConfig, OnlineDistillConfig, default_sampler
     from distill.trainer_config import TrainerConfig
 
     parser.add_argument("--data", type=Path, required=True, help="rollout dataset folder")
     parser.add_argument("--out", type=Path, required=True, help="output folder (decoder.safetensors lands here)")
+    parser.add_argument(
+        "--online",
+        action="store_true",
+        help="online (DAgger-style) distillation: the policy also acts in the tracking task and the snippets' "
+        "experts (--experts) label the states it visits (settings: the OnlineDistillConfig flags)",
+    )
     add_dataclass_arguments(parser, TrainerConfig)
     add_dataclass_arguments(parser, NpmpConfig)
     add_dataclass_arguments(parser, SamplerConfig, ("normalize_observations", "actions"), base=default_sampler())
+    add_dataclass_arguments(parser, OnlineDistillConfig)
     parser.set_defaults(handler=_distill_train)
 
 
 def _distill_train(args: argparse.Namespace) -> None:
     from distill.dataset.sampler import SamplerConfig
     from distill.npmp.model import NpmpConfig
-    from distill.npmp.training import default_sampler, train_npmp
+    from distill.npmp.training import OnlineDistillConfig, default_sampler, train_npmp
     from distill.trainer import TrainerConfig, distributed_from_environment
 
+    online = None
+    if args.online:
+        online = dataclass_from_args(OnlineDistillConfig, args)
+    elif given_fields(OnlineDistillConfig, args):
+        flags = ", ".join("--" + name.replace("_", "-") for name in given_fields(OnlineDistillConfig, args))
+        raise ValueError(f"{flags} set online distillation; add --online to distill online")
     result = train_npmp(
         args.data,
         args.out,
         dataclass_from_args(NpmpConfig, args),
         dataclass_from_args(TrainerConfig, args),
         dataclass_from_args(SamplerConfig, args, base=default_sampler()),
+        online=online,
     )
     if not distributed_from_environment().is_main:  # under torchrun, rank 0 alone reports
         return

@@ -71,7 +71,7 @@ class QuickstartConfig:
     skill_steps: int = 1000
     shipped_experts: str = "synthetic-v3"
     shipped_gpt: str = "synthetic-v3"
-    completion_contexts: int = 6
+    completion_contexts: int = 20
     completion_snippet: str = "SYN_walk_slow-0-182"
     episodes_per_snippet: int = 3
     expert_snippets: tuple[str, ...] = ("SYN_wave-0-196", "SYN_walk_slow-0-182", "SYN_squat-0-155")

@@ -137,7 +137,8 @@ def print_summary(summary: dict) -> None:
     if "learning" in velocity:
         line += f"; {velocity['learning']}"
     print(line)
-    recordings = [*([shipped["velocity_control"]["recording"]] if shipped else []), *summary["recordings"].values()]
+    shipped_recordings = [shipped[name]["recording"] for name in ("velocity_control", "gpt") if name in shipped]
+    recordings = [*shipped_recordings, *summary["recordings"].values()]
     print(f"\nrecordings: {', '.join(recordings)} (mocap-hierarchy view FILE)")
     print(f"plots: {', '.join(summary['plots'])}")
     print(f"tracking environment: {summary['env_steps_per_second']:.0f} env steps/s (one process)")

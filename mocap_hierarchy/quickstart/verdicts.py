@@ -49,18 +49,17 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
 
     The first three judge the pipeline run at small scale; ``shipped`` judges skills trained far longer.
     """
-    verdicts = {
-        "experts": _expert_verdicts(summary["playback"], summary["experts"]),
-        "multi_clip": _multi_clip_verdict(summary["distill"]["fraction_of_experts"]),
-        "velocity_control": _velocity_verdict(summary["transfer"], _decoder_path(summary)),
-    }
+    verdicts: dict[str, Any] = {}
     shipped = summary.get("shipped", {})
-    if "velocity_control" in shipped:
+    if "velocity_control" in shipped:  # the shipped skills' verdicts lead
         verdicts["shipped"] = {"velocity_control": _shipped_velocity_verdict(shipped["velocity_control"])}
         if "experts" in shipped:
             verdicts["shipped"]["experts"] = _shipped_experts_verdict(shipped["experts"])
         if "gpt" in shipped:
             verdicts["shipped"]["gpt"] = _shipped_gpt_verdict(shipped["gpt"])
+    verdicts["experts"] = _expert_verdicts(summary["playback"], summary["experts"])
+    verdicts["multi_clip"] = _multi_clip_verdict(summary["distill"]["fraction_of_experts"])
+    verdicts["velocity_control"] = _velocity_verdict(summary["transfer"], _decoder_path(summary))
     return verdicts
 
 

@@ -358,3 +358,16 @@ def test_the_quickstart_completes_the_shipped_snippets_with_a_shipped_gpt_and_re
     figures = result["overall"]["gpt"]["deterministic"]
     assert figures["episodes"] == 4 and 0 <= figures["moving_mean"] <= figures["mean"] <= 500 - 32
     assert result["recorded_snippet"] == snippet and (tmp_path / "completion.rrd").stat().st_size > 0
+
+
+def test_a_gpt_recording_prompted_by_a_shipped_expert_gets_its_reference_steps(tmp_path, capsys):
+    from distill.experts.shipped import shipped_experts
+    from tests.distill.test_gpt import random_gpt
+
+    name = "synthetic-v3/SYN_walk_slow-0-182"  # trained with reference observations of 5 future steps
+    if name not in shipped_experts():
+        pytest.skip(f"{name} does not ship with this installation")
+    gpt_file = random_gpt().save(tmp_path / "gpt.safetensors")
+    args = ["--task", "motion_completion", "--policy", str(gpt_file), "--prompt", name, "--set", "max_steps=40"]
+    assert main(["record", *args, "--out", str(tmp_path / "gpt.rrd")]) == 0, capsys.readouterr().err
+    assert (tmp_path / "gpt.rrd").stat().st_size > 0
