@@ -269,12 +269,14 @@ def model_pages() -> dict[str, str]:
 SNIPPET_EXPERTS_PAGE = "snippet-experts.md"
 """The page under ``models/`` that lists the shipped snippet experts (linked from ``models/index.md``)."""
 
+SCORE_KEYS = ("normalized_reward", "normalized_length", "success")
+"""The card scores the snippet experts' page lists."""
+
 
 def snippet_experts_page() -> str:
     """The shipped snippet experts: name and scores of each, linked to its card."""
     from distill.experts.loading import load_expert
     from distill.experts.shipped import shipped_experts
-    from hierarchy.card_markdown import table
     from hierarchy.card_page import card_page_name
 
     shipped = shipped_experts()
@@ -297,17 +299,16 @@ def snippet_experts_page() -> str:
         rows.append([f"`{name}`", *cells, f"[card]({card_page_name(name, 'expert')})"])
     headers = ["expert", "normalised reward", "normalised length", "success", "card"]
     pages = [card_page_name(name, "expert").removesuffix(".md") for name in shipped]
-    lines += [
-        "Scores over the paper's protocol: 1000 episodes from random frames with action noise 0.1.",
-        "",
-        *table(headers, rows),
-        "",
-    ]
-    return "\n".join([*lines, "```{toctree}", ":maxdepth: 1", ":hidden:", "", *pages, "```", ""])
+    lines += ["Scores over the paper's protocol: 1000 episodes from random frames with action noise 0.1.", ""]
+    return listing_page(lines, headers, rows, pages)
 
 
-SCORE_KEYS = ("normalized_reward", "normalized_length", "success")
-"""The card scores the snippet experts' page lists."""
+def listing_page(lines: list[str], headers: list[str], rows: list[list[str]], pages: list[str]) -> str:
+    """``lines``, then the table of ``rows``, then a hidden table of contents of the card ``pages`` it links."""
+    from hierarchy.card_markdown import table
+
+    contents = ["```{toctree}", ":maxdepth: 1", ":hidden:", "", *pages, "```"]
+    return "\n".join([*lines, *table(headers, rows), "", *contents, ""])
 
 
 TASK_POLICIES_PAGE = "task-policies.md"
@@ -316,7 +317,7 @@ TASK_POLICIES_PAGE = "task-policies.md"
 
 def task_policies_page() -> str:
     """The shipped task policies: name, task, decoder and summary of each, linked to its card."""
-    from hierarchy.card_markdown import read_file_facts, table
+    from hierarchy.card_markdown import read_file_facts
     from hierarchy.card_page import card_page_name
     from hierarchy.model_card import CARD_KEY
     from hierarchy.pretrained import shipped_task_policies
@@ -343,8 +344,7 @@ def task_policies_page() -> str:
         link = f"[{name}]({card_page_name(name, 'policy')})"
         rows.append([f"`{name}`", f"`{description.get('task', '?')}`", f"`{decoder}`", card.get("summary", ""), link])
     pages = [card_page_name(name, "policy").removesuffix(".md") for name in shipped]
-    lines += [*table(["task policy", "task", "decoder", "summary", "card"], rows), ""]
-    return "\n".join([*lines, "```{toctree}", ":maxdepth: 1", ":hidden:", "", *pages, "```", ""])
+    return listing_page(lines, ["task policy", "task", "decoder", "summary", "card"], rows, pages)
 
 
 # --------------------------------------------------------------------------------------------- writing

@@ -167,15 +167,12 @@ def _print_shipped_gpt(run: dict) -> None:
         f"{run['prompt_steps']} steps by the shipped expert, then the completer alone (deterministic, at most "
         f"{run['max_steps'] - run['prompt_steps']} steps); seconds the humanoid kept moving:"
     )
-    completers = ["gpt", *COMPLETION_BASELINES]
     labels = {"gpt": "GPT", **COMPLETION_BASELINES}
-    print(f"  {'snippet':<26}" + "".join(f"{labels[name]:>{max(10, len(labels[name]) + 2)}}" for name in completers))
-    rows = {**run["per_snippet"], "overall": {n: run["overall"][n]["deterministic"]["moving_mean"] for n in completers}}
+    widths = {name: max(10, len(label) + 2) for name, label in labels.items()}
+    print(f"  {'snippet':<26}" + "".join(f"{label:>{widths[name]}}" for name, label in labels.items()))
+    rows = {**run["per_snippet"], "overall": {n: run["overall"][n]["deterministic"]["moving_mean"] for n in labels}}
     for snippet, moving in rows.items():
-        print(
-            f"  {snippet:<26}"
-            + "".join(f"{moving[name] * CONTROL_TIMESTEP:>{max(10, len(labels[name]) + 2)}.1f}" for name in completers)
-        )
+        print(f"  {snippet:<26}" + "".join(f"{moving[n] * CONTROL_TIMESTEP:>{widths[n]}.1f}" for n in labels))
     print(f"  recording: the GPT completing {run['recorded_snippet']} ({run['recording']})")
 
 

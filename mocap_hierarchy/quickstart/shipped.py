@@ -139,7 +139,8 @@ def shipped_gpt_stage(recording: Path, config: QuickstartConfig) -> dict[str, An
         f"\nshipped motion GPT {config.shipped_gpt}: completing {len(names)} snippets from {contexts} contexts each, "
         f"after {completion.prompt_steps} steps of their shipped experts"
     )
-    prompts = {name.split("/", 1)[1]: (lambda rows, expert=name: ExpertPrompt(load_expert(expert))) for name in names}
+    experts = {name.split("/", 1)[1]: load_expert(name) for name in names}  # read once, prompting every completer
+    prompts = {snippet: (lambda rows, expert=expert: ExpertPrompt(expert)) for snippet, expert in experts.items()}
     gpt_file = resolve_gpt(config.shipped_gpt)  # a path: the GPT shares its name with the decoder it came with
     results = complete_motions(load_gpt(gpt_file), prompts, completion, progress=True)
     demo = f"{config.shipped_experts}/{config.completion_snippet}"
