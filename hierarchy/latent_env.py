@@ -19,7 +19,10 @@ low-level step on the current observation.
 With a :class:`hierarchy.latent_prior.LatentPrior` the high-level action is a
 *residual*: the decoder receives ``z = mu(s) + a`` (clipped to the bound),
 ``mu(s)`` recomputed on every low-level step, so ``a = 0`` does what the
-training motions did from the current state.
+training motions did from the current state. Around a prior learned with the
+decoder (stochastic: it has a spread ``sigma(s)``) the residual is in units of
+that spread, ``z = mu(s) + sigma(s) a``: a Gaussian high-level policy starting
+at ``a ~ N(0, I)`` explores by sampling the prior.
 
 Both forms have ``get_state``/``set_state`` (:mod:`tasks.env_state`): the decoder and the prior
 are frozen, so their state is the last observation the next latent is decoded on.
@@ -72,7 +75,11 @@ def _checked_latent(z: np.ndarray, space: gym.spaces.Box) -> np.ndarray:
 
 
 class _Latents:
-    """Turns a high-level action into the decoder's latent: itself, or a residual on the prior's mean."""
+    """Turns a high-level action into the decoder's latent: itself, or a residual on the prior.
+
+    Around a mean-only prior ``z = mu(s) + a``; around a stochastic (learned) prior ``z = mu(s) + sigma(s) a``,
+    so ``a ~ N(0, I)`` samples the prior.
+    """
 
     def __init__(self, decoder: LatentDecoder, prior: LatentPrior | None, space: gym.spaces.Box) -> None:
         if prior is not None:
@@ -83,7 +90,7 @@ class _Latents:
         """``z`` for the decoder's flat observation (:meth:`LatentDecoder.flatten`) and the action."""
         if self.prior is None:
             return action
-        return np.clip(self.prior.latents(flat_observation) + action, self.space.low, self.space.high)
+        return np.clip(self.prior.residual_latents(flat_observation, action), self.space.low, self.space.high)
 
 
 def _action_bounds(decoder: LatentDecoder, space: gym.Space) -> tuple[np.ndarray, np.ndarray]:
@@ -102,7 +109,7 @@ class LatentActionEnv(gym.Wrapper):
         decoder: The frozen decoder.
         max_latent: Per-element bound of ``z`` (the paper's 3).
         steps_per_latent: Low-level steps per high-level action (the paper's 1).
-        prior: A latent prior of this decoder; actions become residuals on its mean.
+        prior: A latent prior of this decoder; actions become residuals on it (see the module docstring).
 
     Raises:
         DecoderMismatchError: The decoder's (or prior's) observations or actions do not fit ``env``.
@@ -194,7 +201,7 @@ class LatentActionVecEnv(VecEnvWrapper):
             done; its next episode has then already run the remaining steps
             under the old latent (the VecEnv resets it automatically) and those
             rewards are not counted.
-        prior: A latent prior of this decoder; actions become residuals on its mean.
+        prior: A latent prior of this decoder; actions become residuals on it (see the module docstring).
     """
 
     def __init__(

@@ -12,6 +12,11 @@ latent-action environments (:mod:`hierarchy.latent_env`) read the policy's
 action as a residual, ``z = mu(s) + a`` (PULSE's choice of a learned prior
 for the high level).
 
+A prior learned *with* the decoder (``distill train --prior learned``, PULSE's design) is also a
+distribution: its MLP gives a mean and a log standard deviation (:attr:`LatentPriorSpec.stochastic`), and
+:meth:`LatentPrior.sample` draws ``z ~ N(mu(s), sigma(s)^2)``, motion the decoder was trained to
+produce from that state.
+
 The file (one ``.safetensors``, defined only here): tensors ``net.*`` (the
 MLP), ``observation_mean`` and ``observation_std`` (the decoder's own
 normaliser, copied), and a JSON :class:`LatentPriorSpec` under the metadata key
@@ -42,8 +47,11 @@ from foundation.shipped import ShippedArtifacts
 from hierarchy.decoder import DecoderMismatchError, LatentDecoder, register_standardiser, standardiser_tensors
 
 PRIOR_FORMAT = "mocap_hierarchy.latent_prior"
-PRIOR_SCHEMA_VERSION = 1
+PRIOR_SCHEMA_VERSION = 2
+"""2 added ``layer_norm`` and ``stochastic`` (version 1 files read as a mean without layer norm)."""
 PRIORS_SUBFOLDER = "priors"
+LOG_STD_RANGE = (-5.0, 1.0)
+"""Bounds of a stochastic prior's log standard deviation (the trained and the loaded one clamp alike)."""
 """Where, inside the shipped decoders' folder, their priors live: one ``NAME.safetensors`` per decoder name."""
 
 
@@ -62,6 +70,9 @@ class LatentPriorSpec:
         activation: Hidden activation, a key of ``foundation.networks.ACTIVATIONS``.
         decoder_behaviour_sha256: :meth:`LatentDecoder.behaviour_sha256` of the decoder it was fitted for.
         provenance: How it was fitted: policy, snippets, episodes, noise, steps, loss.
+        layer_norm: Layer norm after each hidden linear layer.
+        stochastic: The MLP gives a mean and a log standard deviation (a prior learned with the decoder),
+            not a mean alone (a prior fitted afterwards).
     """
 
     observation_sizes: dict[str, int]
@@ -70,6 +81,8 @@ class LatentPriorSpec:
     hidden_layers: tuple[int, ...] = (256, 256)
     activation: str = "elu"
     provenance: dict[str, Any] = field(default_factory=dict)
+    layer_norm: bool = False
+    stochastic: bool = False
 
     def __post_init__(self) -> None:
         if self.activation not in ACTIVATIONS:
@@ -84,9 +97,14 @@ class LatentPriorSpec:
         """Length of the flat observation vector."""
         return sum(self.observation_sizes.values())
 
+    def network(self) -> nn.Sequential:
+        """The untrained MLP of this spec (outputs: the mean, then the log standard deviation if stochastic)."""
+        outputs = self.latent_size * (2 if self.stochastic else 1)
+        return mlp(self.observation_size, self.hidden_layers, outputs, self.activation, self.layer_norm)
+
 
 class LatentPrior(nn.Module):
-    """The frozen map ``s -> mu(s)`` (see the module docstring).
+    """The frozen map ``s -> mu(s)``, with ``sigma(s)`` if stochastic (see the module docstring).
 
     Args:
         spec: Architecture, observations and the decoder it belongs to.
@@ -107,7 +125,7 @@ class LatentPrior(nn.Module):
     ) -> None:
         super().__init__()
         self.spec = spec
-        self.net = mlp(spec.observation_size, spec.hidden_layers, spec.latent_size, spec.activation, False)
+        self.net = spec.network()
         register_standardiser(self, observation_mean, observation_std, spec.observation_size, LatentPriorFileError)
         if state_dict is not None:
             self.net.load_state_dict(dict(state_dict))
@@ -127,7 +145,48 @@ class LatentPrior(nn.Module):
 
     def forward(self, observation: torch.Tensor) -> torch.Tensor:
         """``(N, observation_size)`` raw flat observations -> ``(N, latent_size)`` prior means."""
-        return self.net((observation - self.observation_mean) / self.observation_std)
+        return self.distribution(observation)[0]
+
+    def distribution(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """Mean and standard deviation (None unless :attr:`LatentPriorSpec.stochastic`) of ``z`` given raw ``s``."""
+        out = self.net((observation - self.observation_mean) / self.observation_std)
+        if not self.spec.stochastic:
+            return out, None
+        mean, log_std = out.chunk(2, dim=-1)
+        return mean, log_std.clamp(*LOG_STD_RANGE).exp()
+
+    @torch.inference_mode()
+    def residual_latents(self, flat_observations: np.ndarray, residuals: np.ndarray) -> np.ndarray:
+        """``z = mu(s) + sigma(s) * a`` for raw flat ``s`` and residuals ``a`` (``sigma = 1`` for a mean alone).
+
+        A high-level policy acting around a stochastic prior acts in units of the prior's spread, so its
+        first Gaussian actions (``a ~ N(0, I)``) are samples of the prior: exploration the decoder knows.
+        """
+        flat = np.asarray(flat_observations, dtype=np.float32)
+        observation = torch.from_numpy(flat.reshape(-1, flat.shape[-1])).to(self.observation_mean.device)
+        mean, std = self.distribution(observation)
+        a = np.asarray(residuals, dtype=np.float32).reshape(mean.shape)
+        z = mean.cpu().numpy() + (a if std is None else std.cpu().numpy() * a)
+        return z[0] if flat.ndim == 1 else z
+
+    @torch.inference_mode()
+    def sample(self, flat_observations: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """Draws ``z ~ N(mu(s), sigma(s)^2)`` for ``(N, observation_size)`` or ``(observation_size,)`` raw ``s``.
+
+        Raises:
+            ValueError: The prior has no standard deviation (fitted afterwards: a mean alone).
+        """
+        if not self.spec.stochastic:
+            raise ValueError(
+                "this latent prior is a mean alone (fitted after distillation) and cannot be sampled; distil with "
+                "`--prior learned` for one that can"
+            )
+        flat = np.asarray(flat_observations, dtype=np.float32)
+        observation = torch.from_numpy(flat.reshape(-1, flat.shape[-1])).to(self.observation_mean.device)
+        mean, std = self.distribution(observation)
+        assert std is not None
+        z = mean.cpu().numpy() + std.cpu().numpy() * rng.standard_normal(mean.shape)
+        return z[0] if flat.ndim == 1 else z
 
     @torch.inference_mode()
     def latents(self, flat_observations: np.ndarray) -> np.ndarray:
@@ -208,7 +267,7 @@ def load_latent_prior(source: str | os.PathLike, device: str | torch.device = "c
     spec = dataclass_from_json(LatentPriorSpec, description, f"{where}: latent prior description", LatentPriorFileError)
     mean, std = standardiser_tensors(tensors, spec.observation_size, where, "latent prior", LatentPriorFileError)
     check_layout(
-        lambda: mlp(spec.observation_size, spec.hidden_layers, spec.latent_size, spec.activation, False),
+        spec.network,
         tensors,
         where,
         "latent prior",

@@ -27,7 +27,10 @@ class PolicyEvaluationConfig:
             tracking error above 0.3) or ``distance`` (PHC's: the tracked bodies' mean distance
             from the reference above 0.5 m).
         n_envs: Environments stepped in lockstep per snippet.
-        seed: Seed of the starts.
+        seed: Seed of the starts (and of the action noise).
+        action_noise: Standard deviation of Gaussian noise added to the policy's actions (then clipped to
+            [-1, 1]). 0 evaluates the deterministic policy; 0.1 is the paper's noisy protocol, the noise the
+            experts' rollouts (and so the dataset's expert scores, the denominator of the fractions) had.
     """
 
     episodes: int = 100
@@ -36,6 +39,11 @@ class PolicyEvaluationConfig:
     termination: str = "error"
     n_envs: int = 8
     seed: int = 0
+    action_noise: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.action_noise < 0:
+            raise ValueError(f"action_noise must be >= 0, got {self.action_noise}")
 
 
 @dataclass(frozen=True)
@@ -75,6 +83,10 @@ class LatentPriorConfig:
             raise ValueError("need latent_noise >= 0 and validation_fraction in (0, 1)")
 
 
+PRIORS = ("fixed", "learned")
+"""The KL term's priors of :class:`NpmpConfig` (``prior``)."""
+
+
 @dataclass(frozen=True)
 class NpmpConfig:
     """The multi-clip policy's architecture and objective (the paper's B.2, Table 2).
@@ -92,6 +104,11 @@ class NpmpConfig:
         encoder_observables: Encoder inputs (state and reference).
         decoder_observables: Decoder inputs (proprioception only).
         latent_bound: Bound of ``z`` recorded in the decoder file for high-level policies.
+        prior: The prior of the KL term. ``fixed``: the paper's ``N(alpha z_{t-1}, (1 - alpha^2) I)``.
+            ``learned``: a Gaussian ``p(z_t | s_t)`` whose mean and standard deviation an MLP computes from
+            the decoder's observation (PULSE's learned prior), trained with the encoder through the KL term
+            and written beside the decoder as a latent prior file one can sample.
+        prior_layers: Hidden sizes of the learned prior's MLP.
     """
 
     latent_size: int = 60
@@ -106,10 +123,16 @@ class NpmpConfig:
     encoder_observables: tuple[str, ...] = OBSERVABLE_SETS["encoder"]
     decoder_observables: tuple[str, ...] = DECODER
     latent_bound: float = 3.0
+    prior: str = "fixed"
+    prior_layers: tuple[int, ...] = (512, 512)
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.alpha < 1.0:
             raise ValueError(f"alpha must be in [0, 1), got {self.alpha}")
+        if self.prior not in PRIORS:
+            raise ValueError(f"prior must be one of {', '.join(PRIORS)}, got {self.prior!r}")
+        if self.prior == "learned" and self.alpha != 0.0:
+            raise ValueError("a learned prior replaces the autoregressive one: leave alpha at 0")
         if self.activation not in ACTIVATION_NAMES:
             raise ValueError(f"activation must be one of {', '.join(ACTIVATION_NAMES)}")
 

@@ -2,7 +2,8 @@
 
 The policy tracks each snippet (or clip) in the tracking environment with the
 reference look-ahead it was trained with; its latent is the encoder's mean
-(deterministic), starting from zero at every episode. Metrics are MoCapAct's
+(deterministic), starting from zero at every episode; with ``action_noise`` (the paper's
+noisy protocol: 0.1, as the experts' rollouts had) Gaussian noise is added to its actions. Metrics are MoCapAct's
 normalised episode reward and length, divided by the experts' on the same
 snippet with the same initialisation as stored in the rollout dataset
 (``start_metrics`` / ``rsi_metrics``), and the tracking metrics of
@@ -39,7 +40,9 @@ def evaluate_multi_clip(
     walker = build_walker()
     keys = policy.spec.observation_keys
     results = {}
-    for snippet in tqdm(snippets, desc="evaluating multi-clip policy", unit="snippet", disable=not progress):
+    for index, snippet in enumerate(
+        tqdm(snippets, desc="evaluating multi-clip policy", unit="snippet", disable=not progress)
+    ):
         tracking = TrackingConfig(
             snippets=(snippet,),
             clips=clips,
@@ -53,9 +56,12 @@ def evaluate_multi_clip(
         envs = [ClipTrackingEnv(tracking, walker=walker) for _ in range(n_envs)]
         lockstep = Lockstep(envs, config.episodes, [config.seed * 100_003 + i for i in range(n_envs)])
         driver = MultiClipPrompt(policy, n_envs)
+        noise = np.random.default_rng([config.seed, index])
         metrics: dict[str, list[float]] = {}
         while lockstep.active:
             actions = driver.act(lockstep.batch(keys), envs, list(lockstep.active))
+            if config.action_noise > 0:
+                actions = np.clip(actions + config.action_noise * noise.standard_normal(actions.shape), -1.0, 1.0)
             for transition in lockstep.step(actions):
                 if transition.done:
                     record_episode(metrics, transition.info)

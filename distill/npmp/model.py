@@ -10,7 +10,11 @@
 * objective per window of T steps (backpropagation through time):
   ``sum_t [w_t log pi_dec(a_bar_t | s_t, z_t) - beta KL(pi_enc || N(alpha z_{t-1}, (1 - alpha^2) I))]``
   averaged over batch and time, with ``z_0 ~ N(0, I)``, the experts' mean
-  actions ``a_bar`` as targets and the sampler's per-step weights ``w``.
+  actions ``a_bar`` as targets and the sampler's per-step weights ``w``;
+* with ``prior="learned"`` the KL term's prior is instead ``p(z_t | s_t)``, a
+  Gaussian whose mean and log standard deviation an MLP computes from the
+  normalised decoder observation (PULSE's learned prior); it trains through the
+  KL term and exports as a :class:`hierarchy.latent_prior.LatentPrior` one can sample.
 
 Observations arrive already standardised with the dataset statistics (the
 sampler does it); the exported :class:`hierarchy.LatentDecoder` carries the
@@ -39,10 +43,12 @@ from foundation.json_fields import dataclass_from_json
 from foundation.networks import mlp
 from foundation.provenance import provenance
 from hierarchy.decoder import FLOAT32_MAX, DecoderSpec, LatentDecoder, decoder_network
+from hierarchy.latent_prior import LOG_STD_RANGE, LatentPrior, LatentPriorSpec
 from tasks.observables import flat_batch
 
 POLICY_FORMAT = "mocap_hierarchy.multi_clip_policy"
-POLICY_SCHEMA_VERSION = 1
+POLICY_SCHEMA_VERSION = 2
+"""2 added the learned prior (``prior``, ``prior_layers`` and its ``prior.*`` tensors)."""
 
 
 @dataclass(frozen=True)
@@ -74,8 +80,9 @@ class NpmpSpec:
     def npmp(self) -> NpmpConfig:
         """The config as a dataclass."""
         fields = dict(self.config)
-        for name in ("encoder_layers", "decoder_layers", "encoder_observables", "decoder_observables"):
-            fields[name] = tuple(fields[name])
+        for name in ("encoder_layers", "decoder_layers", "encoder_observables", "decoder_observables", "prior_layers"):
+            if name in fields:
+                fields[name] = tuple(fields[name])
         return NpmpConfig(**fields)
 
 
@@ -113,6 +120,7 @@ class NpmpPolicy(nn.Module):
             config.layer_norm,
         )
         self.decoder = decoder_network(self.decoder_spec())
+        self.prior = self.prior_spec().network() if config.prior == "learned" else None
         for name, value in (
             ("encoder_mean", encoder_mean),
             ("encoder_std", encoder_std),
@@ -135,6 +143,20 @@ class NpmpPolicy(nn.Module):
             provenance=facts or {},
         )
 
+    def prior_spec(self, decoder_sha256: str = "", facts: dict[str, Any] | None = None) -> LatentPriorSpec:
+        """The :class:`LatentPriorSpec` of the learned prior (its file names the decoder's ``decoder_sha256``)."""
+        config = self.config
+        return LatentPriorSpec(
+            observation_sizes=dict(self.spec.decoder_sizes),
+            latent_size=config.latent_size,
+            decoder_behaviour_sha256=decoder_sha256,
+            hidden_layers=config.prior_layers,
+            activation=config.activation,
+            provenance=facts or {},
+            layer_norm=config.layer_norm,
+            stochastic=True,
+        )
+
     # The model ------------------------------------------------------------------
 
     def encode(self, encoder_input: torch.Tensor, z_previous: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
@@ -142,6 +164,15 @@ class NpmpPolicy(nn.Module):
         out = self.encoder(torch.cat([encoder_input, z_previous], dim=-1))
         mean, log_std = out.chunk(2, dim=-1)
         return mean, log_std.exp().clamp_min(self.config.min_encoder_std)
+
+    def prior_distribution(
+        self, decoder_input: torch.Tensor, z_previous: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor | float]:
+        """Mean and standard deviation of the KL term's prior on ``z_t`` (normalised decoder inputs, ``z_{t-1}``)."""
+        if self.prior is None:
+            return self.config.alpha * z_previous, math.sqrt(1.0 - self.config.alpha**2)
+        mean, log_std = self.prior(decoder_input).chunk(2, dim=-1)
+        return mean, log_std.clamp(*LOG_STD_RANGE).exp()
 
     def decode(self, decoder_input: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
         """Action means from normalised decoder inputs and ``z`` (unclipped)."""
@@ -162,11 +193,10 @@ class NpmpPolicy(nn.Module):
         targets, weights = batch["actions"], batch["weights"]
         size, steps = targets.shape[:2]
         z = torch.randn(size, config.latent_size, device=targets.device)
-        prior_std = math.sqrt(1.0 - config.alpha**2)
         nll = kl = squared = targets.new_zeros(())
         for t in range(steps):
             mean, std = self.encode(encoder_input[:, t], z)
-            prior_mean = config.alpha * z
+            prior_mean, prior_std = self.prior_distribution(decoder_input[:, t], z)
             z_next = mean + std * torch.randn_like(std)
             actions = self.decode(decoder_input[:, t], z_next)
             error = ((actions - targets[:, t]) / config.action_std) ** 2
@@ -219,6 +249,18 @@ class NpmpPolicy(nn.Module):
             self.decoder_std.cpu(),
             state,
         )
+
+    def export_prior(self, decoder: LatentDecoder, **facts: Any) -> LatentPrior:
+        """The learned prior as a frozen :class:`hierarchy.latent_prior.LatentPrior` of ``decoder`` (this policy's).
+
+        Raises:
+            ValueError: The policy was distilled with the fixed prior.
+        """
+        if self.prior is None:
+            raise ValueError("this multi-clip policy was distilled with the fixed prior; it has no prior to export")
+        state = {k: v.detach().cpu().clone() for k, v in self.prior.state_dict().items()}
+        spec = self.prior_spec(decoder.behaviour_sha256(), provenance(dated=False, **facts))
+        return LatentPrior(spec, self.decoder_mean.cpu(), self.decoder_std.cpu(), state).freeze()
 
     def save(self, path: str | os.PathLike) -> Path:
         """Writes the whole policy (weights, normalisers, :class:`NpmpSpec`) atomically."""
@@ -304,7 +346,9 @@ def load_policy(path: str | os.PathLike) -> NpmpPolicy:
         where,
         "multi-clip policy",
         PolicyFileError,
-        layers=len(config.encoder_layers) + len(config.decoder_layers),
+        layers=len(config.encoder_layers)
+        + len(config.decoder_layers)
+        + (len(config.prior_layers) if config.prior == "learned" else 0),
     )
     try:
         policy = NpmpPolicy(spec, *statistics)
@@ -320,7 +364,9 @@ def load_policy(path: str | os.PathLike) -> NpmpPolicy:
     return policy
 
 
-def _gaussian_kl(mean: torch.Tensor, std: torch.Tensor, prior_mean: torch.Tensor, prior_std: float) -> torch.Tensor:
+def _gaussian_kl(
+    mean: torch.Tensor, std: torch.Tensor, prior_mean: torch.Tensor, prior_std: torch.Tensor | float
+) -> torch.Tensor:
     """``KL(N(mean, std^2) || N(prior_mean, prior_std^2))`` summed over the last axis."""
     variance_ratio = (std / prior_std) ** 2
     difference = ((mean - prior_mean) / prior_std) ** 2

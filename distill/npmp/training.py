@@ -4,6 +4,8 @@
 
 * ``checkpoint.pt``, ``history.json``, ``tensorboard/`` (see :mod:`distill.trainer`);
 * ``policy.safetensors``: the whole multi-clip policy (encoder + decoder), for evaluation;
+* ``prior.safetensors``: with ``prior="learned"``, the learned prior as a latent prior file of that decoder
+  (:mod:`hierarchy.latent_prior`; ``decoder_balance.py``-style sampling, or residuals for a high-level policy);
 * ``decoder.safetensors``: the frozen decoder file (:mod:`hierarchy.decoder`), with a model card in its
   provenance (:func:`decoder_card`: the data, the budget and the command; no wall time, so a card depends only
   on the run's inputs);
@@ -46,6 +48,7 @@ from hierarchy.card_page import write_card
 
 DECODER_FILE = "decoder.safetensors"
 POLICY_FILE = "policy.safetensors"
+PRIOR_FILE = "prior.safetensors"
 
 
 @dataclass(frozen=True)
@@ -116,7 +119,7 @@ def train_npmp(
 
     with writer_lock(out):  # one run per output folder
         settings = {"npmp": asdict(npmp), **(teaching.settings() if teaching is not None else {})}
-        outputs = (DECODER_FILE, POLICY_FILE, CARD_FILE)
+        outputs = (DECODER_FILE, POLICY_FILE, CARD_FILE, *((PRIOR_FILE,) if npmp.prior == "learned" else ()))
         source = teaching.source(trainer) if teaching is not None else None
         description = "distilling online" if teaching is not None else "distilling"
         run = train_on_dataset(
@@ -139,7 +142,10 @@ def train_npmp(
         policy_path = policy.save(out / POLICY_FILE)
         collected = teaching.collected() if teaching is not None else None
         card = decoder_card(data, out, npmp, trainer, sampler, run, online, collected)
-        decoder_path = policy.export_decoder(**facts, model_card=card).save(out / DECODER_FILE)
+        decoder = policy.export_decoder(**facts, model_card=card)
+        decoder_path = decoder.save(out / DECODER_FILE)
+        if policy.prior is not None:
+            policy.export_prior(decoder, policy=POLICY_FILE, **facts).save(out / PRIOR_FILE)
         write_card(decoder_path, out / CARD_FILE)
         extra = {"online_collection": collected} if collected is not None else {}
         write_run_summary(out / "distill.json", settings, trainer, sampler, run, **extra)
@@ -217,6 +223,8 @@ def decoder_card(
     windows = f"batch {trainer.batch_size} windows of {sampler.window} steps ({sampler.weighting} weighting)"
     encoder, decoder = layers_text(npmp.encoder_layers), layers_text(npmp.decoder_layers)
     sizes = f"encoder {encoder}, decoder {decoder}, latent {npmp.latent_size}, KL weight {npmp.kl_weight:g}"
+    if npmp.prior == "learned":
+        sizes += f", learned prior {layers_text(npmp.prior_layers)} (prior.safetensors beside the decoder)"
     card: dict[str, Any] = {
         "summary": (
             f"{decoder} decoder distilled{' online' if online is not None else ''} from {run.episodes} rollout "

@@ -101,9 +101,10 @@ def _distill_eval(args: argparse.Namespace) -> None:
     if not snippets:
         raise ValueError("name --snippets (snippet or clip ids) or give --data to evaluate the dataset's snippets")
     results = evaluate_multi_clip(policy, snippets, config, clips=args.clips, progress=True)
+    noise = f", action noise {config.action_noise:g}" if config.action_noise > 0 else ""
     print(
-        f"{config.episodes} episodes per snippet from {config.init} frames; success: reaching the snippet's end "
-        f"without termination by {TERMINATION_NAMES[config.termination]}"
+        f"{config.episodes} episodes per snippet from {config.init} frames{noise}; success: reaching the snippet's "
+        f"end without termination by {TERMINATION_NAMES[config.termination]}"
     )
     columns = {**TABLE_COLUMNS, "expert_reward": "expert reward", "expert_length": "expert length"}
     rows = {
@@ -116,10 +117,13 @@ def _distill_eval(args: argparse.Namespace) -> None:
     }
     print(metrics_table(rows, columns))
     summary = fraction_of_experts(results, experts)
-    print(
-        f"fraction of the experts over {summary['snippets']} snippets: reward {summary['normalized_reward']:.3f}, "
-        f"length {summary['normalized_length']:.3f}"
-    )
+    if summary["snippets"]:
+        print(
+            f"fraction of the experts over {summary['snippets']} snippets: reward "
+            f"{summary['normalized_reward']:.3f}, length {summary['normalized_length']:.3f}"
+        )
+    else:
+        print("no expert figures for these snippets (give --data with their rollouts): no fraction of the experts")
     if args.json:
         from foundation.atomic import write_json
 

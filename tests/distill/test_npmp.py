@@ -203,3 +203,83 @@ def test_fit_latent_prior_records_the_policy_and_refuses_another_decoder(distill
         fit_latent_prior(policy, tmp_path / "other.safetensors", ["SYN_stand-0-181"], config)
     with pytest.raises(ValueError, match="name the snippets"):
         fit_latent_prior(policy, result.decoder, [], config)
+
+
+LEARNED = dataclasses.replace(SMALL, prior="learned", prior_layers=(32, 32))
+
+
+def test_a_learned_prior_trains_and_ships_as_a_samplable_prior_of_the_decoder(rollout_dir, tmp_path):
+    from hierarchy.latent_prior import load_latent_prior
+
+    result = train_npmp(rollout_dir, tmp_path, LEARNED, dataclasses.replace(FAST, steps=60), SAMPLER, progress=False)
+    policy, decoder = load_policy(result.policy), load_decoder(result.decoder)
+    prior = load_latent_prior(tmp_path / "prior.safetensors")
+    prior.check_fits(decoder)  # names this decoder's weights
+    assert prior.spec.stochastic and prior.spec.layer_norm and prior.spec.hidden_layers == (32, 32)
+    rng = np.random.default_rng(0)
+    raw = rng.normal(size=(5, decoder.spec.observation_size)).astype(np.float32)
+    with torch.no_grad():
+        normalised = (torch.from_numpy(raw) - policy.decoder_mean) / policy.decoder_std
+        expected_mean, expected_std = policy.prior_distribution(normalised, torch.zeros(5, 8))
+        mean, std = prior.distribution(torch.from_numpy(raw))
+    torch.testing.assert_close(mean, expected_mean, rtol=0, atol=0)
+    torch.testing.assert_close(std, expected_std, rtol=0, atol=0)
+    draws = np.stack([prior.sample(raw, np.random.default_rng(seed)) for seed in range(400)])
+    assert draws.shape == (400, 5, 8)
+    np.testing.assert_allclose(draws.mean(0), mean.numpy(), atol=5 * float(std.max()) / 20)
+    np.testing.assert_allclose(draws.std(0), std.numpy(), rtol=0.2)
+    assert result.outcome.history["kl"][-1] < result.outcome.history["kl"][0]
+
+
+def test_the_kl_term_trains_the_learned_prior(rollout_dir, tmp_path):
+    config = dataclasses.replace(LEARNED, kl_weight=1.0)
+    policy = train_npmp(rollout_dir, tmp_path, config, dataclasses.replace(FAST, steps=2), SAMPLER, progress=False)
+    loaded = load_policy(policy.policy)
+    assert loaded.prior is not None
+    before = {k: v.clone() for k, v in loaded.prior.state_dict().items()}
+    batch = {
+        "encoder": torch.randn(4, 3, sum(loaded.spec.encoder_sizes.values())),
+        "decoder": torch.randn(4, 3, sum(loaded.spec.decoder_sizes.values())),
+        "actions": torch.zeros(4, 3, loaded.spec.action_size),
+        "weights": torch.ones(4, 3),
+    }
+    loaded.train()
+    loss, metrics = loaded(batch)
+    loss.backward()
+    assert any(float(p.grad.abs().max()) > 0 for p in loaded.prior.parameters() if p.grad is not None)
+    assert all(torch.equal(before[k], v) for k, v in loaded.prior.state_dict().items())
+    assert float(metrics["kl"]) > 0
+
+
+def test_a_fixed_prior_policy_has_no_prior_to_export(distilled):
+    result, out = distilled
+    policy = load_policy(result.policy)
+    assert policy.prior is None and not (out / "prior.safetensors").exists()
+    with pytest.raises(ValueError, match="fixed prior"):
+        policy.export_prior(load_decoder(result.decoder))
+
+
+def test_a_learned_prior_with_an_autoregressive_alpha_is_refused():
+    with pytest.raises(ValueError, match="leave alpha at 0"):
+        dataclasses.replace(SMALL, prior="learned", alpha=0.9)
+    with pytest.raises(ValueError, match="prior must be one of"):
+        dataclasses.replace(SMALL, prior="vampprior")
+
+
+def test_the_noisy_protocol_adds_action_noise_reproducibly(distilled, rollout_dir):
+    from distill.dataset.reader import RolloutDataset
+    from distill.npmp.evaluation import PolicyEvaluationConfig, evaluate_multi_clip
+
+    result, _ = distilled
+    policy = load_policy(result.policy)
+    dataset = RolloutDataset(rollout_dir)
+    snippets = dataset.snippets()[:1]
+    dataset.close()
+    quiet = PolicyEvaluationConfig(episodes=3, init="start", n_envs=3)
+    noisy = dataclasses.replace(quiet, action_noise=0.3)
+    clean = evaluate_multi_clip(policy, snippets, quiet)
+    first, again = evaluate_multi_clip(policy, snippets, noisy), evaluate_multi_clip(policy, snippets, noisy)
+    assert first == again
+    assert first[snippets[0]]["normalized_reward"] != clean[snippets[0]]["normalized_reward"]
+    with pytest.raises(ValueError, match="action_noise"):
+        PolicyEvaluationConfig(action_noise=-0.1)

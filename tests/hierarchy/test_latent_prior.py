@@ -140,3 +140,38 @@ def test_a_shipped_prior_loads_by_name_and_policies_find_it_after_the_folder_mov
     shutil.move(folder, moved)
     monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", moved)
     assert evaluate_transfer(policy_file, episodes=1, max_steps=5).episodes == 1
+
+
+def stochastic_prior(seed: int = 0) -> LatentPrior:
+    """A random stochastic prior (mean and log standard deviation) of ``small_decoder()``."""
+    torch.manual_seed(seed)
+    return LatentPrior.for_decoder(small_decoder(), hidden_layers=(16,), layer_norm=True, stochastic=True).freeze()
+
+
+def test_a_stochastic_prior_survives_a_round_trip_and_samples_its_distribution(tmp_path):
+    prior = stochastic_prior()
+    loaded = load_latent_prior(prior.save(tmp_path / "prior.safetensors"))
+    assert loaded.spec == prior.spec and loaded.spec.stochastic
+    flat = np.random.default_rng(0).normal(size=(3, prior.spec.observation_size)).astype(np.float32)
+    mean, std = loaded.distribution(torch.from_numpy(flat))
+    assert std is not None and bool((std > 0).all())
+    np.testing.assert_array_equal(loaded.latents(flat), mean.numpy())
+    draws = np.stack([loaded.sample(flat, np.random.default_rng(seed)) for seed in range(2000)])
+    np.testing.assert_allclose(draws.mean(0), mean.numpy(), atol=0.1 * float(std.max()))
+    np.testing.assert_allclose(draws.std(0), std.numpy(), rtol=0.1)
+    with pytest.raises(ValueError, match="cannot be sampled"):
+        small_prior().sample(flat, np.random.default_rng(0))
+
+
+def test_around_a_stochastic_prior_actions_are_residuals_in_units_of_its_spread():
+    decoder, prior = small_decoder(), stochastic_prior()
+    env = LatentActionEnv(tasks.make("velocity_control", max_steps=20), decoder, prior=prior)
+    observation, _ = env.reset(seed=0)
+    residual = np.linspace(-1.0, 1.0, 6).astype(np.float32)
+    flat = decoder.flatten(observation)
+    mean, std = prior.distribution(torch.from_numpy(flat[None]))
+    assert std is not None
+    expected = np.clip(mean[0].numpy() + std[0].numpy() * residual, -3, 3)
+    _, _, _, _, info = env.step(residual)
+    np.testing.assert_allclose(info["latent"], expected, atol=1e-6)
+    assert not np.allclose(info["latent"], np.clip(mean[0].numpy() + residual, -3, 3), atol=1e-3)
