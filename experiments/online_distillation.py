@@ -49,8 +49,10 @@ def run_figures(folder: Path, survival: dict[str, Any]) -> dict[str, float]:
         value = report[metric] if part == "fraction" else np.mean([row[metric] for row in report.values()])
         out[name] = float(value)
     if str(folder) in survival:
-        out["survival_samples"] = float(np.mean(survival[str(folder)]["samples"]))
-        out["survival_mean"] = float(np.mean(survival[str(folder)]["mean"]))
+        measured = survival[str(folder)]
+        for name in ("samples", "mean"):
+            out[f"survival_{name}"] = float(np.mean(measured[name]))
+            out[f"survival_{name}_speed"] = float(measured[f"{name}_speed"])
     return out
 
 
@@ -95,7 +97,7 @@ def main() -> None:
         variant, _, folder = item.partition("=")
         variants[variant].append(Path(folder))
     runs = {str(folder): run_figures(folder, survival) for folders in variants.values() for folder in folders}
-    names = [*FIGURES, "survival_samples", "survival_mean"]
+    names = [*FIGURES, *(f"survival_{name}{part}" for name in ("samples", "mean") for part in ("", "_speed"))]
     summary: dict[str, dict[str, dict[str, float]]] = {}
     print(f"{'':24s}" + "".join(f"{variant:>22s}" for variant in variants))
     for name in names:

@@ -26,31 +26,34 @@ from hierarchy import LatentActionEnv, load_decoder
 from hierarchy.latent_prior import load_latent_prior
 
 
-def survive(env: LatentActionEnv, sampled: bool, seed: int, limit: int) -> int:
-    """Control steps one episode lasts (at most ``limit``) under sampled (or zero) actions."""
+def survive(env: LatentActionEnv, sampled: bool, seed: int, limit: int) -> tuple[int, float]:
+    """One episode under sampled (or zero) actions: control steps up (at most ``limit``), mean pelvis speed (m/s)."""
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     shape = env.action_space.shape
     assert shape is not None
-    for step in range(1, limit + 1):
+    speeds = []
+    for _ in range(limit):
         action = rng.standard_normal(shape) if sampled else np.zeros(shape)
         _, _, terminated, truncated, _ = env.step(action.astype(np.float32))
+        speeds.append(float(np.linalg.norm(env.unwrapped.data.qvel[:2])))
         if terminated or truncated:
-            return step
-    return limit
+            break
+    return len(speeds), float(np.mean(speeds))
 
 
 def measure(run: Path, task: str, episodes: int, limit: int) -> dict[str, Any]:
-    """Steps survived per episode under the prior's samples and under its mean, for one distillation folder."""
+    """Steps up per episode and the mean pelvis speed, under the prior's samples and under its mean, for one run."""
     decoder = load_decoder(run / "decoder.safetensors")
     prior_file = run / "prior.safetensors"
     prior = load_latent_prior(prior_file) if prior_file.is_file() else None
     env = LatentActionEnv(tasks.make(task), decoder, prior=prior)
-    return {
-        "prior": "learned" if prior is not None else "fixed N(0, I)",
-        "samples": [survive(env, True, seed, limit) for seed in range(episodes)],
-        "mean": [survive(env, False, seed, limit) for seed in range(episodes)],
-    }
+    result: dict[str, Any] = {"prior": "learned" if prior is not None else "fixed N(0, I)"}
+    for name, sampled in (("samples", True), ("mean", False)):
+        episodes_run = [survive(env, sampled, seed, limit) for seed in range(episodes)]
+        result[name] = [steps for steps, _ in episodes_run]
+        result[f"{name}_speed"] = float(np.mean([speed for _, speed in episodes_run]))
+    return result
 
 
 def main() -> None:
@@ -62,12 +65,16 @@ def main() -> None:
     parser.add_argument("--json", type=Path, default=None, help="write the results here")
     args = parser.parse_args()
     print(f"{args.task}, {args.episodes} episodes each, at most {args.limit} control steps")
-    print(f"{'run':<40}{'prior':<16}{'samples':>9}{'mean':>7}  per episode (samples)")
+    print(f"{'run':<40}{'prior':<16}{'samples':>9}{'m/s':>6}{'mean':>7}{'m/s':>6}  per episode (samples)")
     results = {}
     for run in args.runs:
         result = results[str(run)] = measure(run, args.task, args.episodes, args.limit)
         samples, mean = result["samples"], result["mean"]
-        print(f"{run!s:<40}{result['prior']:<16}{np.mean(samples):>9.0f}{np.mean(mean):>7.0f}  {samples}")
+        speeds = result["samples_speed"], result["mean_speed"]
+        print(
+            f"{run!s:<40}{result['prior']:<16}{np.mean(samples):>9.0f}{speeds[0]:>6.2f}{np.mean(mean):>7.0f}"
+            f"{speeds[1]:>6.2f}  {samples}"
+        )
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         config = {"task": args.task, "episodes": args.episodes, "limit": args.limit}

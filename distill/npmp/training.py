@@ -249,7 +249,8 @@ def decoder_card(
         card["budgets"]["online"] = _online_budget(online, trainer, collected or {})
         card["notes"].append(
             "Distilled online (DAgger-style): the student acted in the tracking task and its snippets' experts "
-            "labelled the states it visited. Whether this beats offline distillation is not yet measured."
+            "labelled the states it visited (compared with offline distillation on the experiment page "
+            "2026-11-27-online-distillation)."
         )
     return card
 

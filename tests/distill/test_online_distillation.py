@@ -71,7 +71,9 @@ def test_online_distillation_shrinks_the_students_error_on_the_states_it_visits(
     assert load_policy(result.policy).spec.provenance["steps"] == 300
     model_card = load_decoder(result.decoder).spec.provenance["model_card"]
     assert "--online" in model_card["commands"][0] and "--start-from" in model_card["commands"][0]
-    assert "online" in model_card["budgets"] and any("not yet measured" in note for note in model_card["notes"])
+    assert "online" in model_card["budgets"] and any(
+        "2026-11-27-online-distillation" in note for note in model_card["notes"]
+    )
 
 
 def test_the_teacher_probability_falls_linearly_from_its_start_to_zero():
