@@ -20,26 +20,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from decoder_balance import survive
 
 import tasks
 from hierarchy import LatentActionEnv, load_decoder
 from hierarchy.latent_prior import load_latent_prior
-
-
-def survive(env: LatentActionEnv, sampled: bool, seed: int, limit: int) -> tuple[int, float]:
-    """One episode under sampled (or zero) actions: control steps up (at most ``limit``), mean pelvis speed (m/s)."""
-    env.reset(seed=seed)
-    rng = np.random.default_rng(seed)
-    shape = env.action_space.shape
-    assert shape is not None
-    speeds = []
-    for _ in range(limit):
-        action = rng.standard_normal(shape) if sampled else np.zeros(shape)
-        _, _, terminated, truncated, _ = env.step(action.astype(np.float32))
-        speeds.append(float(np.linalg.norm(env.unwrapped.data.qvel[:2])))
-        if terminated or truncated:
-            break
-    return len(speeds), float(np.mean(speeds))
 
 
 def measure(run: Path, task: str, episodes: int, limit: int) -> dict[str, Any]:
@@ -49,8 +34,8 @@ def measure(run: Path, task: str, episodes: int, limit: int) -> dict[str, Any]:
     prior = load_latent_prior(prior_file) if prior_file.is_file() else None
     env = LatentActionEnv(tasks.make(task), decoder, prior=prior)
     result: dict[str, Any] = {"prior": "learned" if prior is not None else "fixed N(0, I)"}
-    for name, sampled in (("samples", True), ("mean", False)):
-        episodes_run = [survive(env, sampled, seed, limit) for seed in range(episodes)]
+    for name, std in (("samples", 1.0), ("mean", 0.0)):  # actions N(0, std^2) at every control step; 0: a = 0
+        episodes_run = [survive(env, std, seed, limit) for seed in range(episodes)]
         result[name] = [steps for steps, _ in episodes_run]
         result[f"{name}_speed"] = float(np.mean([speed for _, speed in episodes_run]))
     return result

@@ -103,6 +103,16 @@ class LatentPriorSpec:
         return mlp(self.observation_size, self.hidden_layers, outputs, self.activation, self.layer_norm)
 
 
+def mean_and_std(output: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """A stochastic prior's network output ``[mean, log std]`` (last axis) as mean and standard deviation.
+
+    The log standard deviation is clamped to :data:`LOG_STD_RANGE`; the multi-clip policy's learned prior
+    (:meth:`distill.npmp.model.NpmpPolicy.prior_distribution`) reads its network the same way.
+    """
+    mean, log_std = output.chunk(2, dim=-1)
+    return mean, log_std.clamp(*LOG_STD_RANGE).exp()
+
+
 class LatentPrior(nn.Module):
     """The frozen map ``s -> mu(s)``, with ``sigma(s)`` if stochastic (see the module docstring).
 
@@ -150,51 +160,50 @@ class LatentPrior(nn.Module):
     def distribution(self, observation: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
         """Mean and standard deviation (None unless :attr:`LatentPriorSpec.stochastic`) of ``z`` given raw ``s``."""
         out = self.net((observation - self.observation_mean) / self.observation_std)
-        if not self.spec.stochastic:
-            return out, None
-        mean, log_std = out.chunk(2, dim=-1)
-        return mean, log_std.clamp(*LOG_STD_RANGE).exp()
+        return mean_and_std(out) if self.spec.stochastic else (out, None)
 
     @torch.inference_mode()
+    def _numpy_distribution(self, flat_observations: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, bool]:
+        """:meth:`distribution` of raw ``(N, observation_size)`` or ``(observation_size,)`` ``s`` as arrays.
+
+        Returns:
+            ``(mean (N, latent), std (N, latent) or None, whether one observation came)``.
+        """
+        flat = np.asarray(flat_observations, dtype=np.float32)
+        observation = torch.from_numpy(flat.reshape(-1, flat.shape[-1])).to(self.observation_mean.device)
+        mean, std = self.distribution(observation)
+        return mean.cpu().numpy(), None if std is None else std.cpu().numpy(), flat.ndim == 1
+
+    def latents(self, flat_observations: np.ndarray) -> np.ndarray:
+        """NumPy form of :meth:`forward` for ``(N, observation_size)`` or ``(observation_size,)``."""
+        mean, _, single = self._numpy_distribution(flat_observations)
+        return mean[0] if single else mean
+
     def residual_latents(self, flat_observations: np.ndarray, residuals: np.ndarray) -> np.ndarray:
         """``z = mu(s) + sigma(s) * a`` for raw flat ``s`` and residuals ``a`` (``sigma = 1`` for a mean alone).
 
         A high-level policy acting around a stochastic prior acts in units of the prior's spread, so its
         first Gaussian actions (``a ~ N(0, I)``) are samples of the prior: exploration the decoder knows.
         """
-        flat = np.asarray(flat_observations, dtype=np.float32)
-        observation = torch.from_numpy(flat.reshape(-1, flat.shape[-1])).to(self.observation_mean.device)
-        mean, std = self.distribution(observation)
+        mean, std, single = self._numpy_distribution(flat_observations)
         a = np.asarray(residuals, dtype=np.float32).reshape(mean.shape)
-        z = mean.cpu().numpy() + (a if std is None else std.cpu().numpy() * a)
-        return z[0] if flat.ndim == 1 else z
+        z = mean + (a if std is None else std * a)
+        return z[0] if single else z
 
-    @torch.inference_mode()
     def sample(self, flat_observations: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         """Draws ``z ~ N(mu(s), sigma(s)^2)`` for ``(N, observation_size)`` or ``(observation_size,)`` raw ``s``.
 
         Raises:
             ValueError: The prior has no standard deviation (fitted afterwards: a mean alone).
         """
-        if not self.spec.stochastic:
+        mean, std, single = self._numpy_distribution(flat_observations)
+        if std is None:
             raise ValueError(
                 "this latent prior is a mean alone (fitted after distillation) and cannot be sampled; distil with "
                 "`--prior learned` for one that can"
             )
-        flat = np.asarray(flat_observations, dtype=np.float32)
-        observation = torch.from_numpy(flat.reshape(-1, flat.shape[-1])).to(self.observation_mean.device)
-        mean, std = self.distribution(observation)
-        assert std is not None
-        z = mean.cpu().numpy() + std.cpu().numpy() * rng.standard_normal(mean.shape)
-        return z[0] if flat.ndim == 1 else z
-
-    @torch.inference_mode()
-    def latents(self, flat_observations: np.ndarray) -> np.ndarray:
-        """NumPy form of :meth:`forward` for ``(N, observation_size)`` or ``(observation_size,)``."""
-        flat = np.asarray(flat_observations, dtype=np.float32)
-        out = self(torch.from_numpy(flat.reshape(-1, flat.shape[-1])).to(self.observation_mean.device))
-        z = out.cpu().numpy()
-        return z[0] if flat.ndim == 1 else z
+        z = mean + std * rng.standard_normal(mean.shape)
+        return z[0] if single else z
 
     def check_fits(self, decoder: LatentDecoder, same_weights: bool = True) -> None:
         """Refuses a decoder with other observations or latent size, or (``same_weights``) other weights.

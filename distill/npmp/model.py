@@ -43,7 +43,7 @@ from foundation.json_fields import dataclass_from_json
 from foundation.networks import mlp
 from foundation.provenance import provenance
 from hierarchy.decoder import FLOAT32_MAX, DecoderSpec, LatentDecoder, decoder_network
-from hierarchy.latent_prior import LOG_STD_RANGE, LatentPrior, LatentPriorSpec
+from hierarchy.latent_prior import LatentPrior, LatentPriorSpec, mean_and_std
 from tasks.observables import flat_batch
 
 POLICY_FORMAT = "mocap_hierarchy.multi_clip_policy"
@@ -171,8 +171,7 @@ class NpmpPolicy(nn.Module):
         """Mean and standard deviation of the KL term's prior on ``z_t`` (normalised decoder inputs, ``z_{t-1}``)."""
         if self.prior is None:
             return self.config.alpha * z_previous, math.sqrt(1.0 - self.config.alpha**2)
-        mean, log_std = self.prior(decoder_input).chunk(2, dim=-1)
-        return mean, log_std.clamp(*LOG_STD_RANGE).exp()
+        return mean_and_std(self.prior(decoder_input))
 
     def decode(self, decoder_input: torch.Tensor, z: torch.Tensor) -> torch.Tensor:
         """Action means from normalised decoder inputs and ``z`` (unclipped)."""

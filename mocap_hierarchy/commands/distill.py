@@ -61,11 +61,10 @@ def _distill_train(args: argparse.Namespace) -> None:
     from distill.npmp.training import OnlineDistillConfig, default_sampler, train_npmp
     from distill.trainer import TrainerConfig, distributed_from_environment
 
-    online = None
-    if args.online:
-        online = dataclass_from_args(OnlineDistillConfig, args)
-    elif given_fields(OnlineDistillConfig, args):
-        flags = ", ".join("--" + name.replace("_", "-") for name in given_fields(OnlineDistillConfig, args))
+    online = dataclass_from_args(OnlineDistillConfig, args) if args.online else None
+    given = given_fields(OnlineDistillConfig, args)
+    if online is None and given:
+        flags = ", ".join("--" + name.replace("_", "-") for name in given)
         raise ValueError(f"{flags} set online distillation; add --online to distill online")
     result = train_npmp(
         args.data,
