@@ -152,6 +152,10 @@ class ResumableBatches(Protocol):
         """Restores :meth:`state_dict`; called before a resumed run asks for its first batch."""
         ...
 
+    def close(self) -> None:
+        """Releases what the source holds (worker processes); called when training ends, however it ends."""
+        ...
+
 
 def train(
     model: nn.Module,
@@ -552,7 +556,11 @@ def train_on_dataset(
                 return mixed.batches(seed, batch_size, device, start)
             return windows.batches(batch_size, seed=seed, device=device, start=start)
 
-        outcome = train(model, batches, out, trainer, resume, progress, description, mixed)
+        try:
+            outcome = train(model, batches, out, trainer, resume, progress, description, mixed)
+        finally:
+            if mixed is not None:
+                mixed.close()
         finished = outcome.already_finished and all((out / name).is_file() for name in outputs)
         write = distributed_from_environment().is_main and not finished
         return DatasetTraining(model, outcome, files, len(dataset.episodes), write, dataset.snippets())

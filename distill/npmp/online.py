@@ -10,7 +10,8 @@ student's own states and labels them with the teachers' mean actions (Ross et al
   stepped together in this process. The choice is made **per episode**: when an episode starts at optimiser
   step ``s``, the teacher drives all of it with probability ``beta(s)`` (``teacher_probability``, from 1 down
   to 0 by default), its mean action plus Gaussian noise of ``teacher_noise`` (the paper's 0.1); otherwise
-  the student drives, as in evaluation (the encoder's mean latent, zero at the start). Per episode, a
+  the student drives, as in evaluation (the encoder's mean latent, zero at the start), its action plus
+  Gaussian noise of ``student_noise`` (none by default). Per episode, a
   student episode shows the states the student's own mistakes lead to, and a teacher episode is like a
   rollout of the dataset. Every visited state is labelled with its snippet's teacher's mean action, whoever
   drives.
@@ -39,13 +40,12 @@ import torch
 from distill.dataset.online_buffer import OnlineBuffer, Segment
 from distill.dataset.sampler import WindowDataset, stream_generator
 from distill.experts.policy import ExpertPolicy
+from distill.npmp.collection_envs import Standing, collection_envs
 from distill.npmp.config import OnlineDistillConfig  # defined there (light), used and re-exported here
 from distill.npmp.model import NpmpPolicy
-from distill.npmp.teachers import teacher_labels, tracking_config
+from distill.npmp.teachers import labels_for, tracking_config
 from distill.trainer import TrainerConfig, distributed_from_environment
 from foundation.snapshots import from_storable, generator_from_state, generator_state, to_storable
-from tasks.tracking.env import ClipTrackingEnv
-from tasks.walker import build_walker
 
 _COLLECTION, _ENV_SEEDS, _WINDOWS = 1, 2, 3
 """Streams of the seed sequence: the collection's draws, the environments' first resets, the online windows."""
@@ -62,7 +62,7 @@ class OnlineCollector:
         policy: The student (trained in place by the loop; read here, never changed).
         teachers: ``{snippet id: expert}`` for every snippet the environments track.
         buffer: Receives the labelled segments (its columns: the student's observables).
-        config: The online settings.
+        config: The online settings (``env_workers``: where the environments step).
         seed: The trainer's seed.
     """
 
@@ -76,14 +76,16 @@ class OnlineCollector:
     ) -> None:
         self.policy, self.teachers, self.buffer, self.config = policy, dict(teachers), buffer, config
         tracking = tracking_config(policy, teachers, config.clips, config.min_steps)
-        walker = build_walker()
-        self.envs = [ClipTrackingEnv(tracking, walker=walker) for _ in range(config.n_envs)]
         self.keys = list(tracking.observables)
         self.student_keys = list(policy.spec.observation_keys)
         self.rng = np.random.default_rng(_seed(seed, _COLLECTION))
-        resets = _seed(seed, _ENV_SEEDS, config.n_envs)
-        self.observations = [env.reset(seed=int(s))[0] for env, s in zip(self.envs, resets, strict=True)]
-        self.teacher_drives = [self._teacher_drives(0) for _ in self.envs]
+        self.envs = collection_envs(tracking, config.n_envs, config.env_workers)
+        try:
+            self.standing = self.envs.first_resets([int(s) for s in _seed(seed, _ENV_SEEDS, config.n_envs)])
+        except BaseException:
+            self.envs.close()
+            raise
+        self.teacher_drives = [self._teacher_drives(0) for _ in range(config.n_envs)]
         self.latents = np.zeros((config.n_envs, policy.config.latent_size), dtype=np.float32)
         self.counts = {"collected_steps": 0, "episodes": 0, "teacher_episodes": 0, "student_episodes": 0}
 
@@ -100,11 +102,13 @@ class OnlineCollector:
         Args:
             step: The optimiser step (the teacher probability of the episodes that start).
         """
-        count, noise = len(self.envs), self.config.teacher_noise
+        count, noise = self.config.n_envs, self.config.teacher_noise
         open_segments = [self._open(i) for i in range(count)]
         for _ in range(self.config.collect_steps):
-            batch = {key: np.stack([obs[key] for obs in self.observations]) for key in self.keys}
-            labels = teacher_labels(self.teachers, self.envs, batch)
+            batch = {key: np.stack([place.observation[key] for place in self.standing]) for key in self.keys}
+            snippets = [place.snippet for place in self.standing]
+            references = [place.reference_actuation for place in self.standing]
+            labels = labels_for(self.teachers, snippets, batch, references.__getitem__)
             actions = labels.copy()
             teacher = np.array(self.teacher_drives)
             if teacher.any():
@@ -114,15 +118,17 @@ class OnlineCollector:
                 student = np.flatnonzero(~teacher)
                 observed = {key: batch[key][student] for key in self.student_keys}
                 actions[student], self.latents[student] = self.policy.act_batch(observed, self.latents[student])
-            for i, env in enumerate(self.envs):
-                observation, reward, terminated, truncated, info = env.step(actions[i])
+                if self.config.student_noise > 0:
+                    draws = self.rng.standard_normal((student.size, labels.shape[1]))
+                    actions[student] = np.clip(actions[student] + self.config.student_noise * draws, -1.0, 1.0)
+            for i, moved in enumerate(self.envs.step(actions)):
                 segment = open_segments[i]
-                segment["actions"].append(info["action"])
+                segment["actions"].append(moved.action)
                 segment["mean_actions"].append(labels[i])
-                segment["rewards"].append(reward)
-                segment["observations"].append(self._flat(observation))
-                self.observations[i] = observation
-                if terminated or truncated:
+                segment["rewards"].append(moved.reward)
+                segment["observations"].append(self._flat(moved.observation))
+                self.standing[i] = moved.next
+                if moved.done:
                     self._close(i, segment)
                     self._start_episode(i, step)
                     open_segments[i] = self._open(i)
@@ -131,20 +137,21 @@ class OnlineCollector:
         self.counts["collected_steps"] += count * self.config.collect_steps
 
     def _open(self, env: int) -> dict[str, Any]:
-        """A new segment of ``env``'s episode, starting from its current observation."""
+        """A new segment of ``env``'s episode, starting from where it stands."""
         return {
-            "observations": [self._flat(self.observations[env])],
+            "snippet": self.standing[env].snippet,
+            "observations": [self._flat(self.standing[env].observation)],
             "actions": [],
             "mean_actions": [],
             "rewards": [],
         }
 
-    def _close(self, env: int, segment: Mapping[str, list]) -> None:
+    def _close(self, env: int, segment: Mapping[str, Any]) -> None:
         if not segment["actions"]:
             return
         self.buffer.add(
             Segment(
-                snippet=str(self.envs[env].reference.snippet),
+                snippet=segment["snippet"],
                 observations=np.stack(segment["observations"]).astype(np.float32),
                 actions=np.asarray(segment["actions"], dtype=np.float32),
                 mean_actions=np.asarray(segment["mean_actions"], dtype=np.float32),
@@ -154,21 +161,24 @@ class OnlineCollector:
         )
 
     def _start_episode(self, env: int, step: int) -> None:
-        """Counts the episode that ended, resets ``env`` and draws who drives its next episode."""
+        """Counts the episode that ended (the environment has reset) and draws who drives its next episode."""
         self.counts["episodes"] += 1
         self.counts["teacher_episodes" if self.teacher_drives[env] else "student_episodes"] += 1
-        self.observations[env] = self.envs[env].reset()[0]
         self.teacher_drives[env] = self._teacher_drives(step)
         self.latents[env] = 0.0
+
+    def close(self) -> None:
+        """Ends the environments' worker processes, if any."""
+        self.envs.close()
 
     # Checkpoints ------------------------------------------------------------------------
 
     def state_dict(self) -> dict[str, Any]:
-        """Environments, observations, drivers, latents, the generator and the counts, as plain data."""
+        """Environments, where they stand, drivers, latents, the generator and the counts, as plain data."""
         return to_storable(
             {
-                "envs": [env.get_state() for env in self.envs],
-                "observations": self.observations,
+                "envs": self.envs.get_states(),
+                "observations": [place.observation for place in self.standing],
                 "teacher_drives": list(self.teacher_drives),
                 "latents": self.latents,
                 "rng": generator_state(self.rng),
@@ -178,17 +188,21 @@ class OnlineCollector:
         )
 
     def load_state_dict(self, state: Mapping[str, Any]) -> None:
-        """Restores :meth:`state_dict` into a collector of the same settings.
+        """Restores :meth:`state_dict` into a collector of the same settings (any ``env_workers``).
 
         Raises:
             ValueError: The state holds another number of environments.
         """
         plain = from_storable(state)
-        if len(plain["envs"]) != len(self.envs):
-            raise ValueError(f"the saved collection has {len(plain['envs'])} environments; this one {len(self.envs)}")
-        for env, env_state in zip(self.envs, plain["envs"], strict=True):
-            env.set_state(env_state)
-        self.observations = [dict(observation) for observation in plain["observations"]]
+        if len(plain["envs"]) != self.config.n_envs:
+            raise ValueError(
+                f"the saved collection has {len(plain['envs'])} environments; this one {self.config.n_envs}"
+            )
+        self.envs.set_states(plain["envs"])
+        self.standing = [  # the snippet and reference follow from the restored state
+            Standing(dict(observation), snippet, reference)
+            for observation, (snippet, reference) in zip(plain["observations"], self.envs.references(), strict=True)
+        ]
         self.teacher_drives = [bool(drives) for drives in plain["teacher_drives"]]
         self.latents = np.asarray(plain["latents"], dtype=np.float32).copy()
         self.rng = generator_from_state(plain["rng"])
@@ -257,6 +271,10 @@ class OnlineBatches:
         """Restores :meth:`state_dict` (before the resumed run's first batch)."""
         self.buffer.load_state_dict(state["buffer"])
         self.collector.load_state_dict(state["collection"])
+
+    def close(self) -> None:
+        """Ends the collection's worker processes, if any (the trainer's call when training ends)."""
+        self.collector.close()
 
     def summary(self) -> dict[str, int]:
         """What was collected: steps, episodes by driver, labelled steps held and ever added."""

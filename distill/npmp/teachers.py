@@ -9,7 +9,7 @@ actions are from its teachers' on the states the student itself visits.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -80,15 +80,35 @@ def teacher_labels(
         observations: Their current observations stacked ``{key: (len(envs), size)}`` (the teachers' keys).
     """
     snippets = [str(env.reference.snippet) for env in envs]
-    labels = np.empty((len(envs), envs[0].walker.num_joints))
+    return labels_for(teachers, snippets, observations, lambda row: envs[row].reference_actuation())
+
+
+def labels_for(
+    teachers: Mapping[str, ExpertPolicy],
+    snippets: Sequence[str],
+    observations: Mapping[str, np.ndarray],
+    reference_actuation: Callable[[int], np.ndarray],
+) -> np.ndarray:
+    """The teachers' absolute mean actions for a batch of states, ``(len(snippets), actions)`` float64.
+
+    Args:
+        teachers: ``{snippet id: expert}``.
+        snippets: The snippet of each row (whose teacher labels it).
+        observations: The rows' observations ``{key: (len(snippets), size)}`` (the teachers' keys).
+        reference_actuation: Row -> the reference's next pose as actions (asked only of residual teachers' rows).
+    """
+    labels: np.ndarray | None = None
     for snippet in sorted(set(snippets)):
         rows = np.array([i for i, name in enumerate(snippets) if name == snippet])
         teacher = teachers[snippet]
         means = teacher.mean_actions({key: observations[key][rows] for key in teacher.keys})
         if teacher.residual_actions:
-            reference = np.stack([envs[i].reference_actuation() for i in rows])
+            reference = np.stack([reference_actuation(int(i)) for i in rows])
             means = np.clip(means + reference, -1.0, 1.0)
+        if labels is None:
+            labels = np.empty((len(snippets), means.shape[1]))
         labels[rows] = means
+    assert labels is not None, "labels_for needs at least one row"
     return labels
 
 

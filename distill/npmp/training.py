@@ -152,6 +152,15 @@ def train_npmp(
         return DistillResult(decoder_path, policy_path, run.outcome)
 
 
+RESULT_NEUTRAL = ("env_workers",)
+"""Online settings that change no result (where the environments step): a run may resume with others, and
+the card's command leaves them out."""
+
+ADDED_LATER = ("student_noise",)
+"""Online settings added after online distillation first shipped: at their defaults they stay out of the resume
+check, so a run started before them (whose checkpoint lacks them) resumes."""
+
+
 @dataclass
 class _Teaching:
     """Online distillation's part of a run: its settings, the teachers, and the batch source once built."""
@@ -176,7 +185,13 @@ class _Teaching:
 
     def settings(self) -> dict[str, Any]:
         """What the resume check adds: the online settings and the teachers' weights (SHA-256)."""
-        return {"online": config_to_dict(self.config), "teachers": self.fingerprints}
+        defaults = config_to_dict(OnlineDistillConfig())
+        online = {
+            key: value
+            for key, value in config_to_dict(self.config).items()
+            if key not in RESULT_NEUTRAL and not (key in ADDED_LATER and value == defaults[key])
+        }
+        return {"online": online, "teachers": self.fingerprints}
 
     def source(self, trainer: TrainerConfig):
         """``source(dataset, windows, model)`` for :func:`distill.trainer.train_on_dataset`."""
@@ -215,7 +230,7 @@ def decoder_card(
         *dataclass_flags(trainer),
         *dataclass_flags(npmp),
         *dataclass_flags(sampler, default_sampler(), exclude=("normalize_observations", "actions")),
-        *(["--online", *dataclass_flags(online)] if online is not None else []),
+        *(["--online", *dataclass_flags(online, exclude=RESULT_NEUTRAL)] if online is not None else []),
     ]
     command = (
         ["mocap-hierarchy", "distill", "train", "--data", os.fspath(data), "--out", os.fspath(out)] if single else []
@@ -267,6 +282,7 @@ def _online_budget(online: OnlineDistillConfig, trainer: TrainerConfig, collecte
     return (
         f"{online.n_envs} environments, {online.collect_steps} steps each every {online.collect_every} optimiser "
         f"steps; teacher probability per episode {online.teacher_probability} (teacher noise "
-        f"{online.teacher_noise:g}); {share} of {trainer.batch_size} windows per batch from a buffer of "
+        f"{online.teacher_noise:g}{f', student noise {online.student_noise:g}' if online.student_noise else ''}); "
+        f"{share} of {trainer.batch_size} windows per batch from a buffer of "
         f"{online.buffer_steps:,} steps" + gathered
     )

@@ -112,6 +112,92 @@ def test_a_stopped_online_run_resumes_to_the_uninterrupted_runs_files(
     assert stopped == whole
 
 
+def test_environments_in_worker_processes_write_the_in_process_runs_files_and_resume_across_worker_counts(
+    taught_dataset, trained_expert, tmp_path, monkeypatch, one_torch_thread
+):
+    # Three environments over two workers (shares of 2 and 1), stopped between checkpoints and resumed in this
+    # process: every file must equal the run that stepped its environments here throughout.
+    trainer = TrainerConfig(steps=20, batch_size=8, learning_rate=1e-3, log_every=4, checkpoint_every=10, device="cpu")
+    here = _online(trained_expert, teacher_probability=Schedule.parse("linear:1@0,0@10"), collect_steps=6, n_envs=3)
+    workers = dataclasses.replace(here, env_workers=2)
+    out = tmp_path / "run"
+
+    def run(online: OnlineDistillConfig) -> None:
+        train_npmp(taught_dataset, out, SMALL, trainer, SAMPLER, progress=False, online=online)
+
+    run(here)
+    out.rename(tmp_path / "here")
+    with monkeypatch.context() as patched:
+        patched.setattr(trainer_module, "stop_requests", stopping_after(13))
+        with pytest.raises(TrainingStopped, match="stopped at step 13 of 20"):
+            run(workers)
+    run(here)
+    out.rename(tmp_path / "workers")
+
+    assert digests(tmp_path / "workers", TIMED) == digests(tmp_path / "here", TIMED)
+    collected = json.loads((tmp_path / "here" / "distill.json").read_text())["online_collection"]
+    assert collected["episodes"] > 0  # resets happened inside the workers too
+
+
+def test_student_noise_perturbs_the_students_actions_and_leaves_the_teachers_labels(
+    taught_dataset, trained_expert, snippet, tmp_path, one_torch_thread
+):
+    from distill.npmp.online import OnlineCollector
+
+    brief = TrainerConfig(steps=2, batch_size=8, log_every=1, checkpoint_every=2, device="cpu")
+    policy = load_policy(train_npmp(taught_dataset, tmp_path / "planted", SMALL, brief, SAMPLER, progress=False).policy)
+    teachers, _ = load_teachers(str(trained_expert), [snippet])
+    sizes = {**policy.spec.encoder_sizes, **policy.spec.decoder_sizes}
+
+    def first_steps(noise: float) -> list[Segment]:
+        # The student drives every episode; one step each from the same starts.
+        online = _online(trained_expert, teacher_probability=Schedule.parse("linear:0@0,0@1"), collect_steps=1)
+        buffer = OnlineBuffer({key: sizes[key] for key in policy.spec.observation_keys}, 100, policy.spec.action_size)
+        OnlineCollector(policy, teachers, buffer, dataclasses.replace(online, student_noise=noise), seed=0).collect(0)
+        return buffer.segments
+
+    quiet, noisy = first_steps(0.0), first_steps(0.1)
+    assert len(quiet) == len(noisy) == 2
+    for calm, shaken in zip(quiet, noisy, strict=True):
+        np.testing.assert_array_equal(calm.observations[0], shaken.observations[0])
+        np.testing.assert_array_equal(calm.mean_actions, shaken.mean_actions)  # the label: the teacher's
+        assert not calm.teacher_acted and not shaken.teacher_acted
+    pairs = zip(quiet, noisy, strict=True)
+    differences = np.concatenate([shaken.actions[0] - calm.actions[0] for calm, shaken in pairs])
+    assert 0.07 < differences.std() < 0.13
+
+
+def test_the_resume_check_ignores_where_environments_step_and_later_settings_at_their_defaults():
+    from distill.npmp.training import _Teaching
+
+    def checked(**changes) -> dict:
+        return _Teaching(OnlineDistillConfig(**changes), {}, {}).settings()["online"]
+
+    assert "env_workers" not in checked(env_workers=4)  # a run may resume with another number of workers
+    assert "student_noise" not in checked()  # as in checkpoints written before the setting existed
+    assert checked(student_noise=0.1)["student_noise"] == 0.1
+    assert checked()["teacher_noise"] == 0.1
+
+
+def test_a_collection_worker_that_dies_is_reported_with_what_to_do(clip_library, snippet):
+    from distill.npmp.collection_envs import EnvWorkerError, EnvWorkers
+    from tasks.tracking.env import TrackingConfig
+
+    config = TrackingConfig(snippets=(snippet,), init="random")
+    envs = EnvWorkers(config, count=2, workers=2)
+    try:
+        standing = envs.first_resets([1, 2])
+        assert [place.snippet for place in standing] == [snippet, snippet]
+        envs.processes[1].kill()
+        envs.processes[1].join()
+        with pytest.raises(EnvWorkerError, match=r"worker 1 died .*__main__.*resume from the last checkpoint"):
+            envs.step(np.zeros((2, standing[0].reference_actuation.size)))
+    finally:
+        envs.close()
+    with pytest.raises(ValueError, match="env_workers must be between 0 and n_envs"):
+        OnlineDistillConfig(n_envs=2, env_workers=3)
+
+
 def test_online_without_an_expert_for_every_snippet_is_refused_naming_them(
     rollout_dir, trained_expert, tmp_path, capsys
 ):
