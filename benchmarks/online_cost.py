@@ -4,18 +4,21 @@ Builds a small rollout dataset of the shipped ``synthetic-v3`` experts (``--clip
 synthetic library, a few episodes per snippet; or reads ``--dataset``), then times
 ``train_npmp`` offline and online (``--online --experts synthetic-v3`` with its default
 collection: 8 environments, 32 steps each every 10 optimiser steps) at the multi-clip
-policy's size of the ``synthetic-v3`` recipe (2 x 512 encoder, 3 x 512 decoder, batch 128).
-Each trial trains ``--steps`` and then ``2 * --steps`` optimiser steps from scratch in
-fresh folders; the difference of the two times is the steady-state cost of ``--steps``
-steps, so building environments, loading teachers and writing files cancel out. Trials
-alternate between the arms; the printed ratio is of the medians.
+policy's size of the ``synthetic-v3`` recipe (2 x 512 encoder, 3 x 512 decoder, batch 128),
+online once with the environments in the training process and once per ``--env-workers``
+count with them in that many worker processes (the same files either way). Each trial
+trains ``--steps`` and then ``2 * --steps`` optimiser steps from scratch in fresh folders;
+the difference of the two times is the steady-state cost of ``--steps`` steps, so
+building environments, starting workers, loading teachers and writing files cancel out.
+Trials alternate between the arms; the printed ratios are of the medians.
 
-Run: python benchmarks/online_cost.py [--steps 40] [--trials 3] [--dataset DIR]
+Run: python benchmarks/online_cost.py [--steps 40] [--trials 3] [--env-workers 2] [--dataset DIR]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import statistics
 import tempfile
 import time
@@ -37,7 +40,7 @@ def small_dataset(out: Path, clips: list[str]) -> Path:
     """Rollouts of the shipped synthetic-v3 experts of ``clips``: 2 episodes per snippet."""
     experts = find_experts("synthetic-v3")
     for clip in clips:
-        own = {snippet: found.root for snippet, found in experts.items() if snippet.startswith(f"{clip}-")}
+        own: dict[str, object] = {s: found.root for s, found in experts.items() if s.startswith(f"{clip}-")}
         if not own:
             raise SystemExit(f"no shipped synthetic-v3 expert tracks clip {clip!r}")
         rollout_clip(clip, own, out, RolloutConfig(n_start=1, n_rsi=1, n_envs=1))
@@ -60,26 +63,36 @@ def main() -> None:
     parser.add_argument("--trials", type=int, default=3)
     parser.add_argument("--dataset", type=Path, default=None, help="a rollout dataset of synthetic-v3's snippets")
     parser.add_argument("--clips", nargs="+", default=["SYN_walk_slow", "SYN_turn_left"])
+    parser.add_argument("--env-workers", type=int, nargs="*", default=[2], help="worker counts to time online")
     args = parser.parse_args()
     torch.set_num_threads(1)
     online = OnlineDistillConfig(experts=("synthetic-v3",))
+    arms: dict[str, OnlineDistillConfig | None] = {"offline": None, "online": online}
+    for workers in args.env_workers:
+        arms[f"online, {workers} workers"] = dataclasses.replace(online, env_workers=workers)
     with tempfile.TemporaryDirectory() as scratch:
         root = Path(scratch)
         dataset = args.dataset or small_dataset(root / "dataset", args.clips)
-        costs: dict[str, list[float]] = {"offline": [], "online": []}
+        costs: dict[str, list[float]] = {arm: [] for arm in arms}
         for trial in range(args.trials):
-            for arm, setting in (("offline", None), ("online", online)):
-                short = seconds(dataset, root / f"{arm}-{trial}-short", args.steps, setting)
-                long = seconds(dataset, root / f"{arm}-{trial}-long", 2 * args.steps, setting)
+            for number, (arm, setting) in enumerate(arms.items()):
+                short = seconds(dataset, root / f"{number}-{trial}-short", args.steps, setting)
+                long = seconds(dataset, root / f"{number}-{trial}-long", 2 * args.steps, setting)
                 costs[arm].append((long - short) / args.steps)
-                print(f"trial {trial} {arm:8s} {costs[arm][-1]:.3f} s per optimiser step")
-    offline, online_cost = statistics.median(costs["offline"]), statistics.median(costs["online"])
+                print(f"trial {trial} {arm:20s} {costs[arm][-1]:.3f} s per optimiser step")
+    medians = {arm: statistics.median(values) for arm, values in costs.items()}
+    offline, in_process = medians["offline"], medians["online"]
     collections = args.steps / online.collect_every
+    print(f"medians of {args.trials} trials, s per optimiser step, against offline:")
+    for arm, cost in medians.items():
+        print(f"  {arm:20s} {cost / offline:.2f}")
     print(
-        f"online / offline, s per optimiser step (medians of {args.trials}): {online_cost / offline:.2f} "
-        f"(collection: {(online_cost - offline) * args.steps / collections:.2f} s per collection of "
-        f"{online.n_envs} x {online.collect_steps} steps, {(online_cost - offline) / online_cost:.0%} of an online step)"
+        f"collection in the training process: {(in_process - offline) * args.steps / collections:.2f} s per "
+        f"collection of {online.n_envs} x {online.collect_steps} steps, {(in_process - offline) / in_process:.0%} "
+        "of an online step"
     )
+    for workers in args.env_workers:
+        print(f"{workers} workers against in-process: {medians[f'online, {workers} workers'] / in_process:.2f}")
 
 
 if __name__ == "__main__":

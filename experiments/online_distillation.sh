@@ -14,12 +14,13 @@
 # evaluation per run. Resumable: rerun it after a kill.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=shared/evaluate_distillation.sh
+source experiments/shared/evaluate_distillation.sh
 data=runs/rebuild-v3/dataset
 out=runs/online
 bash experiments/decoder_rebuild_spread.sh  # the dataset and the offline runs
 card=(--steps 2258 --batch-size 128 --encoder-layers 512 512 --decoder-layers 512 512 512)
 online=(--online --experts synthetic-v3 --teacher-probability linear:1@0,0@1000)
-clips=(SYN_stand SYN_turn_left SYN_turn_right SYN_walk_backward SYN_walk_fast SYN_walk_slow SYN_wave)
 runs=()
 for seed in 0 1 2; do
     mocap-hierarchy distill train --data $data --out $out/online-seed$seed "${card[@]}" --seed $seed "${online[@]}"
@@ -31,16 +32,8 @@ for seed in 0 1 2; do
         learned=$out/learned-offline-seed$seed learned-online=$out/learned-online-seed$seed)
 done
 folders=()
-for run in "${runs[@]}"; do
-    folder=${run#*=}
-    folders+=("$folder")
-    [ -f "$folder/eval.json" ] || mocap-hierarchy distill eval "$folder" --data $data --episodes 50 \
-        --json "$folder/eval.json"
-    [ -f "$folder/eval-noisy.json" ] || mocap-hierarchy distill eval "$folder" --data $data --episodes 50 \
-        --action-noise 0.1 --json "$folder/eval-noisy.json"
-    [ -f "$folder/eval-clips.json" ] || mocap-hierarchy distill eval "$folder" --snippets "${clips[@]}" \
-        --episodes 20 --json "$folder/eval-clips.json"
-done
+for run in "${runs[@]}"; do folders+=("${run#*=}"); done
+evaluate_distillation $data "${folders[@]}"
 python experiments/prior_survival.py "${folders[@]}" --episodes 20 --limit 600 --json $out/survival.json
 python experiments/online_distillation.py "${runs[@]}" --survival $out/survival.json \
     --json docs/results/online_distillation.json --figure docs/figures/online_distillation.png
