@@ -156,7 +156,13 @@ class LocalEnvs:
 def _serve(connection: Connection, config: TrackingConfig, count: int) -> None:
     """A worker's loop: builds its environments and answers ``(command, argument)`` messages until ``close``."""
     set_thread_pools(1)
-    envs = _build(config, count)
+    try:
+        envs = _build(config, count)
+    except Exception:  # answered to the first call, so the main process raises with the cause
+        failure = traceback.format_exc()
+        while connection.recv()[0] != "close":
+            connection.send(("error", failure))
+        return
     calls = {
         "first_resets": lambda seeds: _reset_all(envs, seeds),
         "step": lambda actions: _step_all(envs, actions),
