@@ -2,7 +2,8 @@
 # Does a student that acts with the paper's action noise during online collection hold up better under the
 # noisy protocol? (docs/experiments/2026-11-27-student-noise.md). One change against learned-online of
 # experiments/online_distillation.sh: --student-noise 0.1 (the student's actions during collection carry the
-# noise the noisy protocol adds). Three trainer seeds; the baseline's runs are rebuilt first if missing
+# noise the noisy protocol adds). It did not help and the setting was removed: that arm runs the library at
+# commit fe34e6b (experiments/shared/library_at_fe34e6b.sh). Three trainer seeds; the baseline's runs are rebuilt first if missing
 # (distillation is deterministic: a rebuilt run equals the one measured) and evaluated again with the same
 # protocols: 50 episodes from random frames, deterministic and with noise 0.1; whole clips; samples of the prior.
 # Expected time on a 2-core CPU machine: about 40 minutes for the three seeds' distillations side by side, 3 minutes of
@@ -11,6 +12,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 # shellcheck source=shared/evaluate_distillation.sh
 source experiments/shared/evaluate_distillation.sh
+# shellcheck source=shared/library_at_fe34e6b.sh
+source experiments/shared/library_at_fe34e6b.sh
 data=runs/rebuild-v3/dataset
 out=runs/online
 [ -d $data ] || bash experiments/decoder_rebuild_spread.sh  # the shipped experts' rollouts
@@ -24,7 +27,7 @@ distill() {  # folder seed [extra flags...]
 }
 seed_lane() {  # seed: the baseline (kept when finished), then the change
     distill $out/learned-online-seed$1 "$1"
-    distill $out/learned-online-noisy-seed$1 "$1" --student-noise 0.1
+    PYTHONPATH="$OLD_NOISE" distill $out/learned-online-noisy-seed$1 "$1" --student-noise 0.1
 }
 mkdir -p $out
 seed_lane 0 &

@@ -35,8 +35,14 @@ python experiments/transfer_table.py runs/v4_candidate/velocity_control
 python experiments/transfer_table.py runs/v4_candidate/go_to_target
 mocap-hierarchy report runs/v4_candidate
 cp runs/v4_candidate/report/transfer_curves.png docs/figures/transfer_curves_v4_candidate.png
-folders=(runs/v4_candidate/velocity_control/{decoder_v3_prior,decoder_learned_online}/seed0)
-python experiments/speed_tracking.py "${folders[@]}" --episodes 30 --labels "synthetic-v3" "learned + online" \
-    --out docs/figures/speed_tracking_v4_candidate.png --json runs/v4_candidate/speed_tracking.json
-python experiments/target_reaching.py runs/v4_candidate/go_to_target/{decoder_v3_prior,decoder_learned_online}/seed0 \
-    --episodes 50 --labels "synthetic-v3" "learned + online" --json runs/v4_candidate/target_reaching.json
+labels=("v3 seed 0" "v3 seed 1" "v3 seed 2" "candidate seed 0" "candidate seed 1" "candidate seed 2")
+for task in velocity_control go_to_target; do
+    folders=(runs/v4_candidate/$task/{decoder_v3_prior,decoder_learned_online}/seed{0,1,2})
+    if [ $task = velocity_control ]; then
+        python experiments/speed_tracking.py "${folders[@]}" --episodes 30 --labels "${labels[@]}" \
+            --out docs/figures/speed_tracking_v4_candidate.png --json runs/v4_candidate/speed_tracking.json
+    else
+        python experiments/target_reaching.py "${folders[@]}" --episodes 50 --labels "${labels[@]}" \
+            --json runs/v4_candidate/target_reaching.json
+    fi
+done

@@ -159,9 +159,6 @@ class OnlineDistillConfig:
             step, a schedule (``linear:1@0,0@20k``: from 1 down to 0 at step 20,000, then 0).
         teacher_noise: Standard deviation of the Gaussian noise on the teacher's mean action when it drives
             (the paper's rollout noise, 0.1); the label stays the mean action.
-        student_noise: Standard deviation of the Gaussian noise on the student's action when it drives (0: it
-            acts as in deterministic evaluation; 0.1: as under the paper's noisy protocol, so the buffer holds the
-            states noise leads it to).
         n_envs: Tracking environments stepped in lockstep.
         env_workers: Worker processes the environments are spread over (0: they step in this process, one
             after another). Where they step changes nothing but the wall time, so a run may resume with another
@@ -182,7 +179,6 @@ class OnlineDistillConfig:
         default_factory=lambda: Schedule(((0, 1.0), (20_000, 0.0)), interpolation="linear")
     )
     teacher_noise: float = 0.1
-    student_noise: float = 0.0
     n_envs: int = 8
     env_workers: int = 0
     collect_every: int = 10
@@ -198,8 +194,8 @@ class OnlineDistillConfig:
             raise ValueError(f"online_fraction must be in [0, 1], got {self.online_fraction}")
         if not all(0.0 <= value <= 1.0 for value in self.teacher_probability.values):
             raise ValueError(f"teacher_probability must stay in [0, 1], got {self.teacher_probability}")
-        if min(self.teacher_noise, self.student_noise) < 0:
-            raise ValueError("teacher_noise and student_noise must be >= 0")
+        if self.teacher_noise < 0:
+            raise ValueError(f"teacher_noise must be >= 0, got {self.teacher_noise}")
         if min(self.n_envs, self.collect_every, self.collect_steps, self.buffer_steps) < 1:
             raise ValueError("n_envs, collect_every, collect_steps and buffer_steps must be positive")
         if self.min_steps < 0:

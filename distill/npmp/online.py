@@ -7,14 +7,14 @@ student's own states and labels them with the teachers' mean actions (Ross et al
 (``mocap-hierarchy distill train --online``).
 
 * **Who acts when.** ``n_envs`` tracking environments run random starts on the dataset's snippets, all
-  stepped together in this process. The choice is made **per episode**: when an episode starts at optimiser
-  step ``s``, the teacher drives all of it with probability ``beta(s)`` (``teacher_probability``, from 1 down
-  to 0 by default), its mean action plus Gaussian noise of ``teacher_noise`` (the paper's 0.1); otherwise
-  the student drives, as in evaluation (the encoder's mean latent, zero at the start), its action plus
-  Gaussian noise of ``student_noise`` (none by default). Per episode, a
-  student episode shows the states the student's own mistakes lead to, and a teacher episode is like a
-  rollout of the dataset. Every visited state is labelled with its snippet's teacher's mean action, whoever
-  drives.
+  stepped together, here or in ``env_workers`` processes (:mod:`distill.npmp.collection_envs`). The choice
+  is made **per episode**: when an episode starts at optimiser step ``s``, the teacher drives all of it with
+  probability ``beta(s)`` (``teacher_probability``, from 1 down to 0 by default), its mean action plus
+  Gaussian noise of ``teacher_noise`` (the paper's 0.1); otherwise the student drives, as in evaluation (the
+  encoder's mean latent, zero at the start; acting with the noisy protocol's noise instead was measured not
+  to help: experiment page 2026-11-27-student-noise). Per episode, a student episode shows the states the
+  student's own mistakes lead to, and a teacher episode is like a rollout of the dataset. Every visited state
+  is labelled with its snippet's teacher's mean action, whoever drives.
 * **When.** Every ``collect_every`` optimiser steps (the first before step 0's batch) each environment moves
   on ``collect_steps`` steps; an episode goes on across collections. Each collection adds one segment per
   environment (and one per episode that ended) to the :class:`~distill.dataset.online_buffer.OnlineBuffer`.
@@ -118,9 +118,6 @@ class OnlineCollector:
                 student = np.flatnonzero(~teacher)
                 observed = {key: batch[key][student] for key in self.student_keys}
                 actions[student], self.latents[student] = self.policy.act_batch(observed, self.latents[student])
-                if self.config.student_noise > 0:
-                    draws = self.rng.standard_normal((student.size, labels.shape[1]))
-                    actions[student] = np.clip(actions[student] + self.config.student_noise * draws, -1.0, 1.0)
             for i, moved in enumerate(self.envs.step(actions)):
                 segment = open_segments[i]
                 segment["actions"].append(moved.action)

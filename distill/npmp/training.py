@@ -156,10 +156,6 @@ RESULT_NEUTRAL = ("env_workers",)
 """Online settings that change no result (where the environments step): a run may resume with others, and
 the card's command leaves them out."""
 
-ADDED_LATER = ("student_noise",)
-"""Online settings added after online distillation first shipped: at their defaults they stay out of the resume
-check, so a run started before them (whose checkpoint lacks them) resumes."""
-
 
 @dataclass
 class _Teaching:
@@ -185,12 +181,7 @@ class _Teaching:
 
     def settings(self) -> dict[str, Any]:
         """What the resume check adds: the online settings and the teachers' weights (SHA-256)."""
-        defaults = config_to_dict(OnlineDistillConfig())
-        online = {
-            key: value
-            for key, value in config_to_dict(self.config).items()
-            if key not in RESULT_NEUTRAL and not (key in ADDED_LATER and value == defaults[key])
-        }
+        online = {key: value for key, value in config_to_dict(self.config).items() if key not in RESULT_NEUTRAL}
         return {"online": online, "teachers": self.fingerprints}
 
     def source(self, trainer: TrainerConfig):
@@ -282,7 +273,6 @@ def _online_budget(online: OnlineDistillConfig, trainer: TrainerConfig, collecte
     return (
         f"{online.n_envs} environments, {online.collect_steps} steps each every {online.collect_every} optimiser "
         f"steps; teacher probability per episode {online.teacher_probability} (teacher noise "
-        f"{online.teacher_noise:g}{f', student noise {online.student_noise:g}' if online.student_noise else ''}); "
-        f"{share} of {trainer.batch_size} windows per batch from a buffer of "
+        f"{online.teacher_noise:g}); {share} of {trainer.batch_size} windows per batch from a buffer of "
         f"{online.buffer_steps:,} steps" + gathered
     )
