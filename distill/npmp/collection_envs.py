@@ -157,26 +157,21 @@ def _serve(connection: Connection, config: TrackingConfig, count: int) -> None:
     """A worker's loop: builds its environments and answers ``(command, argument)`` messages until ``close``."""
     set_thread_pools(1)
     try:
-        envs = _build(config, count)
+        local = LocalEnvs(config, count)
     except Exception:  # answered to the first call, so the main process raises with the cause
         failure = traceback.format_exc()
         while connection.recv()[0] != "close":
             connection.send(("error", failure))
         return
-    calls = {
-        "first_resets": lambda seeds: _reset_all(envs, seeds),
-        "step": lambda actions: _step_all(envs, actions),
-        "get_states": lambda _: [env.get_state() for env in envs],
-        "set_states": lambda states: [env.set_state(state) for env, state in zip(envs, states, strict=True)],
-        "references": lambda _: [_reference(env) for env in envs],
-    }
     while True:
         command, argument = connection.recv()
         if command == "close":
             connection.close()
             return
-        try:
-            connection.send(("ok", calls[command](argument)))
+        try:  # the command is a LocalEnvs method; those without an argument get None
+            method = getattr(local, command)
+            answer = method() if argument is None else method(argument)
+            connection.send(("ok", [] if answer is None else answer))
         except Exception:  # the traceback goes to the main process, which raises
             connection.send(("error", traceback.format_exc()))
 
