@@ -26,8 +26,7 @@ from pathlib import Path
 
 import torch
 
-from distill.dataset.writer import RolloutConfig, rollout_clip
-from distill.experts.files import find_experts
+from distill.dataset.writer import RolloutConfig, experts_by_clip, rollout_clip
 from distill.npmp.config import NpmpConfig, OnlineDistillConfig
 from distill.npmp.training import train_npmp
 from distill.trainer import TrainerConfig
@@ -38,12 +37,11 @@ RECIPE = NpmpConfig(encoder_layers=(512, 512), decoder_layers=(512, 512, 512))
 
 def small_dataset(out: Path, clips: list[str]) -> Path:
     """Rollouts of the shipped synthetic-v3 experts of ``clips``: 2 episodes per snippet."""
-    experts = find_experts("synthetic-v3")
+    experts = experts_by_clip("synthetic-v3")
     for clip in clips:
-        own: dict[str, object] = {s: found.root for s, found in experts.items() if s.startswith(f"{clip}-")}
-        if not own:
-            raise SystemExit(f"no shipped synthetic-v3 expert tracks clip {clip!r}")
-        rollout_clip(clip, own, out, RolloutConfig(n_start=1, n_rsi=1, n_envs=1))
+        if clip not in experts:
+            raise SystemExit(f"no shipped synthetic-v3 expert tracks clip {clip!r}; they track {', '.join(experts)}")
+        rollout_clip(clip, dict(experts[clip]), out, RolloutConfig(n_start=1, n_rsi=1, n_envs=1))
     return out
 
 

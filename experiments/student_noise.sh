@@ -6,8 +6,8 @@
 # commit fe34e6b (experiments/shared/library_at_fe34e6b.sh). Three trainer seeds; the baseline's runs are rebuilt first if missing
 # (distillation is deterministic: a rebuilt run equals the one measured) and evaluated again with the same
 # protocols: 50 episodes from random frames, deterministic and with noise 0.1; whole clips; samples of the prior.
-# Expected time on a 2-core CPU machine: about 40 minutes for the three seeds' distillations side by side, 3 minutes of
-# evaluation per run. Resumable: rerun it after a kill.
+# Time on a 2-core CPU machine, measured 2026-11-27: 70 minutes for the three distillations side by side beside two
+# PPO runs, then about 10 minutes of evaluations. Resumable: rerun it after a kill.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # shellcheck source=shared/evaluate_distillation.sh

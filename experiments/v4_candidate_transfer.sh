@@ -3,7 +3,8 @@
 # online with a learned prior (runs/online/learned-online-seed0, from experiments/online_distillation.sh) against
 # synthetic-v3: velocity control in any direction, then go-to-target on dm_control's reward alone, 300k steps each,
 # the two decoders side by side (one per core).
-# Expected time on a 2-core CPU machine: about 40 minutes (three seeds; 300k steps in about 5-6 minutes per run).
+# Time on a 2-core CPU machine, measured 2026-11-27: 90 minutes beside three distillations (a run of 300k steps took
+# about 6 minutes while the two lanes had the machine to themselves).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 

@@ -103,20 +103,6 @@ def _standing(env: ClipTrackingEnv, observation: dict[str, np.ndarray]) -> Stand
     return Standing(observation, *_reference(env))
 
 
-def _step_all(envs: Sequence[ClipTrackingEnv], actions: np.ndarray) -> list[Moved]:
-    moved = []
-    for env, action in zip(envs, actions, strict=True):
-        observation, reward, terminated, truncated, info = env.step(action)
-        done = bool(terminated or truncated)
-        following = env.reset()[0] if done else observation
-        moved.append(Moved(np.asarray(info["action"]), float(reward), observation, done, _standing(env, following)))
-    return moved
-
-
-def _reset_all(envs: Sequence[ClipTrackingEnv], seeds: Sequence[int]) -> list[Standing]:
-    return [_standing(env, env.reset(seed=int(seed))[0]) for env, seed in zip(envs, seeds, strict=True)]
-
-
 def _build(config: TrackingConfig, count: int) -> list[ClipTrackingEnv]:
     walker = build_walker()
     return [ClipTrackingEnv(config, walker=walker) for _ in range(count)]
@@ -130,11 +116,17 @@ class LocalEnvs:
 
     def first_resets(self, seeds: Sequence[int]) -> list[Standing]:
         """Resets every environment with its seed."""
-        return _reset_all(self.envs, seeds)
+        return [_standing(env, env.reset(seed=int(seed))[0]) for env, seed in zip(self.envs, seeds, strict=True)]
 
     def step(self, actions: np.ndarray) -> list[Moved]:
         """Steps every environment with its row of ``actions`` (resetting those whose episode ended)."""
-        return _step_all(self.envs, actions)
+        moved = []
+        for env, action in zip(self.envs, actions, strict=True):
+            observation, reward, terminated, truncated, info = env.step(action)
+            done = bool(terminated or truncated)
+            following = env.reset()[0] if done else observation
+            moved.append(Moved(np.asarray(info["action"]), float(reward), observation, done, _standing(env, following)))
+        return moved
 
     def get_states(self) -> list[dict[str, Any]]:
         """Every environment's complete state (:meth:`ClipTrackingEnv.get_state`)."""

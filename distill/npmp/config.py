@@ -162,8 +162,7 @@ class OnlineDistillConfig:
         n_envs: Tracking environments stepped in lockstep.
         env_workers: Worker processes the environments are spread over (0: they step in this process, one
             after another). Where they step changes nothing but the wall time, so a run may resume with another
-            value; worth it when stepping outweighs the policies' batched calls (more cores than 2, more
-            environments: ``benchmarks/online_cost.py`` measures it).
+            value. On 2 cores, 2 workers were no faster than none (``benchmarks/online_cost.py``).
         collect_every: Optimiser steps between collections (the first is before step 0's batch).
         collect_steps: Steps every environment moves on per collection (episodes carry over).
         buffer_steps: Labelled steps the buffer keeps; the oldest segments go first.

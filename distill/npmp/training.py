@@ -152,7 +152,7 @@ def train_npmp(
         return DistillResult(decoder_path, policy_path, run.outcome)
 
 
-RESULT_NEUTRAL = ("env_workers",)
+RESUME_FREE_FIELDS = ("env_workers",)
 """Online settings that change no result (where the environments step): a run may resume with others, and
 the card's command leaves them out."""
 
@@ -181,7 +181,7 @@ class _Teaching:
 
     def settings(self) -> dict[str, Any]:
         """What the resume check adds: the online settings and the teachers' weights (SHA-256)."""
-        online = {key: value for key, value in config_to_dict(self.config).items() if key not in RESULT_NEUTRAL}
+        online = {key: value for key, value in config_to_dict(self.config).items() if key not in RESUME_FREE_FIELDS}
         return {"online": online, "teachers": self.fingerprints}
 
     def source(self, trainer: TrainerConfig):
@@ -221,7 +221,7 @@ def decoder_card(
         *dataclass_flags(trainer),
         *dataclass_flags(npmp),
         *dataclass_flags(sampler, default_sampler(), exclude=("normalize_observations", "actions")),
-        *(["--online", *dataclass_flags(online, exclude=RESULT_NEUTRAL)] if online is not None else []),
+        *(["--online", *dataclass_flags(online, exclude=RESUME_FREE_FIELDS)] if online is not None else []),
     ]
     command = (
         ["mocap-hierarchy", "distill", "train", "--data", os.fspath(data), "--out", os.fspath(out)] if single else []
