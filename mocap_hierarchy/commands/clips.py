@@ -8,25 +8,39 @@ from pathlib import Path
 
 from foundation.config_cli import LazySubParsers, add_subcommands
 
+CLIPS_HELP = "clip file or shipped library name: cmu-locomotion-v1, synthetic (default: synthetic)"
+
 
 def add_commands(subparsers: LazySubParsers) -> None:
     """Registers ``clips ...`` and ``tasks``."""
-    clips = subparsers.add_parser("clips", help="clip files: synthetic library, listing, snippet splitting")
+    clips = subparsers.add_parser(
+        "clips", help="clip files: importing motion, shipped libraries, listing, looking, snippet splitting"
+    )
     commands = add_subcommands(clips, dest="clips_command", required=True, metavar="COMMAND")
 
     commands.add_lazy_parser(
         "write-synthetic", _build_write_synthetic, help="generate the synthetic clip library (deterministic)"
     )
 
+    commands.add_lazy_parser(
+        "import", _build_import, help="import recordings (CMU ASF/AMC, BVH) as a clip file every command reads"
+    )
+    commands.add_lazy_parser("show", _build_show, help="record a clip's reference motion (no physics) to look at it")
+    library = commands.add_parser("library", help="the shipped clip libraries, or one library's clips by kind")
+    library.add_argument("name", nargs="?", default=None, help="a shipped library (default: list them)")
+    library.set_defaults(handler=_library)
+    joint_maps = commands.add_parser("joint-maps", help="list the shipped joint maps for BVH retargeting")
+    joint_maps.set_defaults(handler=_joint_maps)
+
     listing = commands.add_parser("list", help="list the clips of a clip file with their lengths and snippets")
-    listing.add_argument("--clips", type=Path, default=None, help="clip file (default: the synthetic library)")
+    listing.add_argument("--clips", default=None, help=CLIPS_HELP)
     listing.add_argument("--cmu", action="store_true", help="list the CMU 2020 file (never downloaded)")
     listing.add_argument("--json", action="store_true", help="print JSON instead of a table")
     listing.set_defaults(handler=_list)
 
     snippets = commands.add_parser("snippets", help="print the snippet ids of clips (one per line)")
     snippets.add_argument("clip_ids", nargs="*", help="clips to split (default: all in the file)")
-    snippets.add_argument("--clips", type=Path, default=None, help="clip file (default: the synthetic library)")
+    snippets.add_argument("--clips", default=None, help=CLIPS_HELP)
     snippets.add_argument(
         "--cmu", action="store_true", help="print MoCapAct's ids of the CMU 2020 clips (shipped; no clip file needed)"
     )
@@ -50,6 +64,90 @@ def _build_write_synthetic(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--clip", action="append", default=None, help="only this clip id (repeatable)")
     parser.set_defaults(handler=_write_synthetic)
+
+
+def _build_import(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("paths", nargs="+", type=Path, help=".amc (with optional .asf), .bvh files, or folders of them")
+    parser.add_argument(
+        "--out", type=Path, required=True, help="the clip file to write (.h5; a report .import.json beside)"
+    )
+    parser.add_argument(
+        "--joint-map", default=None, help="joint map (shipped name or JSON file) for BVH skeletons other than CMU's"
+    )
+    parser.add_argument("--frame-rate", type=float, default=None, help="frames per second of AMC files (default: 120)")
+    parser.add_argument("--json", action="store_true", help="print the report as JSON instead of a table")
+    parser.set_defaults(handler=_import)
+
+
+def _build_show(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("clip_id", help="the clip to show (see `mocap-hierarchy clips list --clips ...`)")
+    parser.add_argument("--clips", default=None, help=CLIPS_HELP)
+    parser.add_argument("--out", type=Path, required=True, help="the .rrd file to write")
+    parser.add_argument("--video", type=Path, default=None, help="also an mp4 (MUJOCO_GL=egl or osmesa, video extra)")
+    parser.add_argument("--filmstrip", type=Path, default=None, help="also a PNG of 8 frames (needs --video)")
+    parser.set_defaults(handler=_show)
+
+
+def _import(args: argparse.Namespace) -> None:
+    from tasks.clips.importers.pipeline import import_clip_file, report_path
+    from tasks.clips.importers.trajectory import MotionImportError
+
+    try:
+        out, imported = import_clip_file(args.paths, args.out, joint_map=args.joint_map, frame_rate=args.frame_rate)
+    except MotionImportError as error:
+        raise SystemExit(f"clips import: {error}") from None
+    rows = [clip.summary() for clip in imported]
+    if args.json:
+        print(json.dumps({"file": str(out), "clips": rows}, indent=2))
+        return
+    print(f"{'clip':<18}{'steps':>6}{'snippets':>9}{'root shift m':>14}{'skating mm/step':>16}{'clearance mm':>13}")
+    for row in rows:
+        shift = f"{row['root_shift_min_m']:+.3f}..{row['root_shift_max_m']:+.3f}"
+        print(
+            f"{row['clip_id']:<18}{row['steps']:>6}{len(row['snippets']):>9}{shift:>14}"
+            f"{row['skating_mm_per_step']:>16.1f}{row['clearance_mm']:>13.1f}"
+        )
+    print(f"wrote {len(rows)} clips to {out}; report in {report_path(out)}")
+
+
+def _show(args: argparse.Namespace) -> None:
+    from tasks.viz.clip_playback import record_clip
+
+    result = record_clip(args.clips or "synthetic", args.clip_id, args.out, video=args.video, filmstrip=args.filmstrip)
+    written = [str(result["path"]), *(str(p) for p in (result["video"], result["filmstrip"]) if p)]
+    print(f"{args.clip_id}: {result['steps']} steps -> {', '.join(written)}")
+
+
+def _library(args: argparse.Namespace) -> None:
+    from collections import Counter
+
+    from tasks.clips.real.library import CMU_ATTRIBUTION, REAL_LIBRARIES, library_clips
+    from tasks.clips.snippets import snippets_of_clip
+
+    if args.name is None:
+        for name in sorted(REAL_LIBRARIES):
+            clips = library_clips(name)
+            print(f"{name}: {len(clips)} clips, {sum(c.steps for c in clips) * 0.03 / 60:.1f} min (real, CMU)")
+        print("synthetic: the built-in synthetic clips (`mocap-hierarchy clips list --clips synthetic`)")
+        return
+    clips = library_clips(args.name)
+    kinds = Counter(c.kind for c in clips)
+    snippets = Counter()
+    for clip in clips:
+        snippets[clip.kind] += len(snippets_of_clip(clip.clip_id, clip.steps))
+    print(f"{args.name}: {len(clips)} clips, {sum(snippets.values())} snippets")
+    print(f"{'kind':<20}{'clips':>6}{'snippets':>9}{'seconds':>9}")
+    for kind in sorted(kinds):
+        seconds = sum(c.steps for c in clips if c.kind == kind) * 0.03
+        print(f"{kind:<20}{kinds[kind]:>6}{snippets[kind]:>9}{seconds:>9.0f}")
+    print(CMU_ATTRIBUTION)
+
+
+def _joint_maps(args: argparse.Namespace) -> None:
+    from tasks.clips.importers.joint_map import shipped_joint_maps
+
+    for name, description in shipped_joint_maps().items():
+        print(f"{name:<14}{description}")
 
 
 def _clip_file(args: argparse.Namespace) -> Path:

@@ -2,7 +2,9 @@
 
 In order of preference:
 
-1. a path the caller gives (function argument or ``--clips`` on the CLI);
+1. a path the caller gives (function argument or ``--clips`` on the CLI), or the name of a clip
+   library shipped with the package (``cmu-locomotion-v1``: real CMU motion,
+   :mod:`tasks.clips.real.library`; ``synthetic``: the built-in synthetic clips);
 2. for CMU clips: the file named by ``$MOCAP_HIERARCHY_CMU_FILE``, else the
    CMU 2020 file in dm_control's cache (beside the dm_control package or in
    ``~/.dm_control/``, at its exact size);
@@ -99,7 +101,8 @@ def resolve_clip_file(
     """Picks the clip file for a set of clip ids.
 
     Args:
-        clips: An explicit clip file (always wins).
+        clips: An explicit clip file, or a shipped library's name (always wins; a file of that name wins
+            over the library).
         clip_ids: The clips needed; ``CMU_*`` ids need the CMU file.
         progress: Progress bar if the synthetic library has to be generated.
 
@@ -108,9 +111,15 @@ def resolve_clip_file(
     """
     if clips is not None:
         path = Path(clips).expanduser()
-        if not path.is_file():
-            raise ClipSourceError(f"clip file {path} does not exist")
-        return path
+        if path.is_file():
+            return path
+        named = shipped_clip_library(str(clips), progress=progress)
+        if named is None:
+            raise ClipSourceError(
+                f"clip file {path} does not exist, and {str(clips)!r} is not a shipped clip library "
+                f"({', '.join(shipped_clip_library_names())})"
+            )
+        return named
     if any(not c.startswith("SYN_") for c in clip_ids):
         cmu = find_cmu_file()
         if cmu is None:
@@ -118,3 +127,25 @@ def resolve_clip_file(
             raise ClipSourceError(f"clips {wanted[:5]} need the CMU data. {cmu_file_help()}")
         return cmu
     return ensure_synthetic_library(progress=progress)
+
+
+SYNTHETIC_LIBRARY_NAME = "synthetic"
+"""The name that loads the built-in synthetic library wherever a clip file is accepted."""
+
+
+def shipped_clip_library_names() -> list[str]:
+    """Names accepted wherever a clip file is: the real libraries shipped as package data, and ``synthetic``."""
+    from tasks.clips.real.library import REAL_LIBRARIES
+
+    return [*sorted(REAL_LIBRARIES), SYNTHETIC_LIBRARY_NAME]
+
+
+def shipped_clip_library(name: str, progress: bool = True) -> Path | None:
+    """The clip file of a shipped library by name (computed into the cache on first use), or None."""
+    from tasks.clips.real.library import REAL_LIBRARIES, real_library_path
+
+    if name == SYNTHETIC_LIBRARY_NAME:
+        return ensure_synthetic_library(progress=progress)
+    if name in REAL_LIBRARIES:
+        return real_library_path(name, progress=progress)
+    return None

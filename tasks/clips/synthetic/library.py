@@ -14,11 +14,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-import mujoco
 import numpy as np
 from tqdm.auto import tqdm
 
 from tasks.clips.format import Clip, write_clips
+from tasks.clips.kinematics import clip_from_qpos
 from tasks.clips.synthetic import motions
 from tasks.clips.synthetic.frames import FrameSpec
 from tasks.clips.synthetic.rig import Rig
@@ -102,48 +102,6 @@ def generate_clip(recipe: ClipRecipe, walker: WalkerModel | None = None, rig: Ri
         if lowest < 0.0:
             raise GenerationError(f"{recipe.clip_id} step {step}: a sole is {-lowest:.4f} m below the floor")
     return clip_from_qpos(walker, recipe.clip_id, qpos, CONTROL_TIMESTEP, recipe.description)
-
-
-def clip_from_qpos(walker: WalkerModel, clip_id: str, qpos: np.ndarray, dt: float, description: str = "") -> Clip:
-    """Computes every clip feature from a ``(num_steps, nq)`` trajectory.
-
-    Velocities are central differences (one-sided at the ends) taken with
-    MuJoCo's ``mj_differentiatePos``, so they are consistent with ``qvel``
-    (free-joint angular velocity in the pelvis frame).
-    """
-    model = walker.model
-    data = walker.new_data()
-    steps = len(qpos)
-    qvel = np.zeros((steps, model.nv))
-    for t in range(steps):
-        before, after = max(t - 1, 0), min(t + 1, steps - 1)
-        mujoco.mj_differentiatePos(model, qvel[t], (after - before) * dt, qpos[before], qpos[after])
-    root = walker.root_body
-    features: dict[str, list[np.ndarray]] = {
-        name: [] for name in ("center_of_mass", "end_effectors", "appendages", "body_positions", "body_quaternions")
-    }
-    for t in range(steps):
-        data.qpos[:] = qpos[t]
-        data.qvel[:] = qvel[t]
-        mujoco.mj_forward(model, data)
-        features["center_of_mass"].append(data.subtree_com[walker.attachment_body].copy())
-        features["end_effectors"].append(data.sensordata[walker.sensor_end_effectors].copy())
-        relative = data.xpos[walker.appendage_bodies] - data.xpos[root]
-        features["appendages"].append((relative @ data.xmat[root].reshape(3, 3)).ravel())
-        features["body_positions"].append(data.xpos[walker.tracking_bodies].ravel())
-        features["body_quaternions"].append(data.xquat[walker.tracking_bodies].ravel())
-    return Clip(
-        clip_id=clip_id,
-        dt=dt,
-        description=description,
-        position=qpos[:, 0:3].copy(),
-        quaternion=qpos[:, 3:7].copy(),
-        joints=qpos[:, walker.mocap_qpos],
-        velocity=qvel[:, 0:3].copy(),
-        angular_velocity=qvel[:, 3:6].copy(),
-        joints_velocity=qvel[:, walker.mocap_dof],
-        **{name: np.array(values) for name, values in features.items()},
-    )
 
 
 def recipe(clip_id: str) -> ClipRecipe:

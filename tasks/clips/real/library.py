@@ -1,0 +1,160 @@
+"""Clip libraries of real motion shipped as package data and loaded by name (``--clips cmu-locomotion-v1``).
+
+A shipped library keeps only what cannot be recomputed: each clip's walker positions (``qpos``, float64,
+compressed) at the control step, after import (resampling, feet on the floor), with its kind and the
+database's description. On first use the clip file every command reads is computed from them by forward
+kinematics of the walker (the same bytes as importing the recordings, a few seconds) and cached in
+``$MOCAP_HIERARCHY_CACHE``. Nothing is downloaded.
+
+Package file layout (``<name>.h5`` beside this module)::
+
+    /                attrs: library (name), attribution, terms, generator, clip_count
+    /<clip_id>       dataset qpos (steps, 63); attrs: dt, kind, description, source, floor (JSON)
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+CMU_ATTRIBUTION = (
+    "The data used in this project was obtained from mocap.cs.cmu.edu. "
+    "The database was created with funding from NSF EIA-0196217."
+)
+CMU_TERMS = (
+    "This data is free for use in research projects. You may include this data in commercially-sold products, "
+    "but you may not resell this data directly, even in converted form."
+)
+
+REAL_LIBRARIES = {"cmu-locomotion-v1": "cmu_locomotion_v1.h5"}
+"""Shipped real clip libraries: name -> package file."""
+
+
+class RealLibraryError(KeyError):
+    """A name that is not a shipped clip library, or a damaged package file."""
+
+    def __str__(self) -> str:
+        return str(self.args[0])
+
+
+@dataclass(frozen=True)
+class LibraryClip:
+    """One clip of a shipped library, as its card lists it.
+
+    Attributes:
+        clip_id: The clip id (``CMU_016_22``).
+        kind: Its kind of motion (``walk``, ``run``, ``turn left`` ...).
+        description: The database's description of the trial.
+        steps: Control steps (0.03 s).
+        floor: The import's floor report (root shift, skating, clearance).
+    """
+
+    clip_id: str
+    kind: str
+    description: str
+    steps: int
+    floor: dict[str, float]
+
+
+def package_file(name: str) -> Path:
+    """The package data file of a shipped library.
+
+    Raises:
+        RealLibraryError: Not a shipped name (the message lists them).
+    """
+    if name not in REAL_LIBRARIES:
+        raise RealLibraryError(f"no shipped clip library {name!r}; shipped: {', '.join(sorted(REAL_LIBRARIES))}")
+    return Path(str(resources.files("tasks.clips.real").joinpath(REAL_LIBRARIES[name])))
+
+
+def library_clips(name: str) -> list[LibraryClip]:
+    """The clips of a shipped library with their kinds, in id order."""
+    with h5py.File(package_file(name), "r") as f:
+        return [
+            LibraryClip(
+                clip_id=clip_id,
+                kind=_text(f[clip_id].attrs["kind"]),
+                description=_text(f[clip_id].attrs["description"]),
+                steps=int(f[clip_id]["qpos"].shape[0]),
+                floor=json.loads(_text(f[clip_id].attrs["floor"])),
+            )
+            for clip_id in sorted(f.keys())
+        ]
+
+
+def real_library_path(name: str, progress: bool = True) -> Path:
+    """The clip file of a shipped library, computed into the cache on first use.
+
+    The cached file's name carries the package file's hash, so a new release is never
+    confused with an old cache.
+    """
+    from tasks.clips.sources import cache_dir
+
+    source = package_file(name)
+    digest = hashlib.sha256(source.read_bytes()).hexdigest()[:12]
+    path = cache_dir() / f"{name}-{digest}.h5"
+    if not path.is_file():
+        expand_library(source, path, progress=progress)
+    return path
+
+
+def expand_library(source: str | os.PathLike, out: str | os.PathLike, progress: bool = True) -> Path:
+    """Writes the full clip file of a packaged library (forward kinematics of every clip's ``qpos``)."""
+    from tqdm.auto import tqdm
+
+    from tasks.clips.format import write_clips
+    from tasks.clips.kinematics import clip_from_qpos
+    from tasks.walker import build_walker
+
+    walker = build_walker()
+    clips = []
+    with h5py.File(source, "r") as f:
+        for clip_id in tqdm(sorted(f.keys()), desc=f"clips of {Path(source).stem}", disable=not progress):
+            group = f[clip_id]
+            qpos = np.asarray(group["qpos"], dtype=np.float64)
+            dt = float(group.attrs["dt"])
+            text = f"{_text(group.attrs['kind'])}: {_text(group.attrs['description'])} (CMU, {_text(group.attrs['source'])})"
+            clips.append(clip_from_qpos(walker, clip_id, qpos, dt, text))
+        attrs = {key: _text(f.attrs[key]) for key in ("library", "attribution", "terms")}
+    return write_clips(out, clips, attrs=attrs)
+
+
+def write_package_file(
+    out: str | os.PathLike, name: str, clips: list[tuple[str, np.ndarray, float, dict[str, str], dict[str, float]]]
+) -> Path:
+    """Writes a library's package file (developers: ``tools/build_real_library.py``).
+
+    Args:
+        out: Destination.
+        name: The library's name.
+        clips: ``(clip_id, qpos, dt, {"kind", "description", "source"}, floor report)`` per clip.
+    """
+    from foundation.atomic import atomic_path
+
+    out = Path(out)
+    with atomic_path(out) as temporary, h5py.File(temporary, "w", track_order=False) as f:
+        f.attrs["library"] = np.bytes_(name.encode())
+        f.attrs["attribution"] = np.bytes_(CMU_ATTRIBUTION.encode())
+        f.attrs["terms"] = np.bytes_(CMU_TERMS.encode())
+        f.attrs["clip_count"] = np.int64(len(clips))
+        for clip_id, qpos, dt, text, floor in clips:
+            group = f.create_group(clip_id)
+            group.create_dataset(
+                "qpos", data=qpos, compression="gzip", compression_opts=9, shuffle=True, track_times=False
+            )
+            group.attrs["dt"] = np.float64(dt)
+            for key in ("kind", "description", "source"):
+                group.attrs[key] = np.bytes_(text[key].encode())
+            group.attrs["floor"] = np.bytes_(json.dumps(floor, sort_keys=True).encode())
+    return out
+
+
+def _text(value: object) -> str:
+    return value.decode() if isinstance(value, bytes | np.bytes_) else str(value)

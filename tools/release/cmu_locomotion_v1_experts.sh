@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Trains the first real expert group, cmu-locomotion-v1: 24 snippets of the shipped real clip library covering
+# every kind it holds, with the synthetic release's recipe (--profile fast-3m-wide, one seed; training stops early
+# at 0.98 normalised length). Two lanes side by side on a 2-core machine, at low priority so interactive work
+# comes first. Each lane trains one expert of every kind first, then the rest.
+# Resumable: rerun it after a kill (or in a new session) and every expert continues from its checkpoint; finished
+# ones are skipped. Where every run stands: python tools/release/expert_status.py runs/release-cmu-v1/experts
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+export OMP_NUM_THREADS=1
+[ -z "${VIRTUAL_ENV:-}" ] && [ -f .venv/bin/activate ] && . .venv/bin/activate  # the README install
+out=runs/release-cmu-v1/experts
+mkdir -p $out
+
+train() {  # snippet [extra flags]
+    local snippet=$1
+    shift
+    if [ -f "$out/$snippet/done.json" ]; then return 0; fi
+    nice -n 10 mocap-hierarchy expert train --snippet "$snippet" --clips cmu-locomotion-v1 --out $out \
+        --profile fast-3m-wide --eval-episodes "50@0,500@2M" "$@"
+}
+
+lane_a() {  # walks, veers and turns, walking and running
+    for snippet in CMU_016_22-0-82 CMU_016_27-0-64 CMU_016_23-0-79 CMU_016_51-0-46 CMU_016_48-0-32 \
+        CMU_002_01-0-92 CMU_016_28-0-72 CMU_016_30-0-70 CMU_105_36-0-138 CMU_016_36-0-49 CMU_105_62-0-192 \
+        CMU_016_25-0-75; do
+        train $snippet
+    done
+}
+
+lane_b() {  # runs, jumps, jump-turns, turns on the spot
+    for snippet in CMU_016_55-0-47 CMU_016_29-0-75 CMU_013_11-0-112 CMU_105_46-0-86 CMU_105_56-0-135 \
+        CMU_016_53-0-36 CMU_016_49-0-32 CMU_009_11-0-42 CMU_105_39-0-120 CMU_105_48-0-118 CMU_105_53-0-150 \
+        CMU_016_02-0-126; do
+        train $snippet
+    done
+}
+
+lane_a > $out/../lane_a.log 2>&1 &
+a=$!
+lane_b > $out/../lane_b.log 2>&1 &
+b=$!
+wait $a $b
