@@ -17,6 +17,10 @@ import csv
 import re
 from pathlib import Path
 
+import numpy as np
+
+from tasks.clips.format import Clip
+
 NOT_LOCOMOTION = ("basketball", "dance", "jumping jacks", "soccer")
 """Descriptions of trials left out: ball games, dances and exercise routines."""
 
@@ -80,9 +84,8 @@ def main() -> None:
     )
 
 
-def _qpos(clip):  # noqa: ANN001, ANN202 (a Clip)
-    import numpy as np
-
+def _qpos(clip: Clip) -> np.ndarray:
+    """The walker positions ``(steps, nq)`` of an imported clip."""
     from tasks.walker import build_walker
 
     walker = build_walker()

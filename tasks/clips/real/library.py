@@ -33,6 +33,9 @@ CMU_TERMS = (
     "but you may not resell this data directly, even in converted form."
 )
 
+EXPANSION_VERSION = 1
+"""Bumped whenever :func:`expand_library` would write other bytes; part of the cached file's name."""
+
 REAL_LIBRARIES = {"cmu-locomotion-v1": "cmu_locomotion_v1.h5"}
 """Shipped real clip libraries: name -> package file."""
 
@@ -92,14 +95,14 @@ def library_clips(name: str) -> list[LibraryClip]:
 def real_library_path(name: str, progress: bool = True) -> Path:
     """The clip file of a shipped library, computed into the cache on first use.
 
-    The cached file's name carries the package file's hash, so a new release is never
-    confused with an old cache.
+    The cached file's name carries the package file's hash and :data:`EXPANSION_VERSION`, so a new
+    release or a new expansion is never confused with an old cache.
     """
     from tasks.clips.sources import cache_dir
 
     source = package_file(name)
     digest = hashlib.sha256(source.read_bytes()).hexdigest()[:12]
-    path = cache_dir() / f"{name}-{digest}.h5"
+    path = cache_dir() / f"{name}-{digest}-x{EXPANSION_VERSION}.h5"
     if not path.is_file():
         expand_library(source, path, progress=progress)
     return path
@@ -120,7 +123,8 @@ def expand_library(source: str | os.PathLike, out: str | os.PathLike, progress: 
             group = f[clip_id]
             qpos = np.asarray(group["qpos"], dtype=np.float64)
             dt = float(group.attrs["dt"])
-            text = f"{_text(group.attrs['kind'])}: {_text(group.attrs['description'])} (CMU, {_text(group.attrs['source'])})"
+            kind, description = _text(group.attrs["kind"]), _text(group.attrs["description"])
+            text = f"{kind}: {description} (CMU, {_text(group.attrs['source'])})"
             clips.append(clip_from_qpos(walker, clip_id, qpos, dt, text))
         attrs = {key: _text(f.attrs[key]) for key in ("library", "attribution", "terms")}
     return write_clips(out, clips, attrs=attrs)
