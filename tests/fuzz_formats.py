@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from tests.fuzz_motion_formats import motion_targets
 from tests.fuzzing import (
     BadLoad,
     Case,
@@ -962,6 +963,7 @@ def all_targets() -> list[Target]:
         gpt_target(),
         rollout_target(),
         clip_target(),
+        *motion_targets(),
         archive_target("w:gz"),
         archive_target("w"),
     ]

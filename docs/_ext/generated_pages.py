@@ -7,6 +7,8 @@
   by :func:`hierarchy.card_page.card_page` (what ``mocap-hierarchy decoder card`` prints), so the page, the command
   and the file cannot disagree;
 * ``models/task-policies.md``: the shipped task policies, each with its card (or the note that none is shipped);
+* ``models/clips-NAME.md``: each shipped real clip library, its composition and playback figures
+  (:mod:`clip_library_pages`);
 * ``models/expert-GROUP-SNIPPET.md`` and ``models/gpt-NAME.md``: the card of every shipped snippet expert and motion
   GPT (what ``expert card`` and ``gpt card`` print), and ``models/snippet-experts.md`` listing the experts.
 
@@ -26,6 +28,8 @@ import sys
 from importlib import resources
 from pathlib import Path
 from typing import Any
+
+from clip_library_pages import clip_library_pages
 
 DOCS = Path(__file__).resolve().parents[1]
 
@@ -356,6 +360,7 @@ def generated_pages() -> dict[Path, str]:
     pages.update({DOCS / "models" / name: text for name, text in model_pages().items()})
     pages[DOCS / "models" / TASK_POLICIES_PAGE] = task_policies_page()
     pages[DOCS / "models" / SNIPPET_EXPERTS_PAGE] = snippet_experts_page()
+    pages.update(clip_library_pages())
     return pages
 
 

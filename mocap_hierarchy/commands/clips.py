@@ -26,6 +26,13 @@ def add_commands(subparsers: LazySubParsers) -> None:
         "import", _build_import, help="import recordings (CMU ASF/AMC, BVH) as a clip file every command reads"
     )
     commands.add_lazy_parser("show", _build_show, help="record a clip's reference motion (no physics) to look at it")
+    playback = commands.add_parser(
+        "playback", help="open-loop playback of snippets: how far the reference's own poses get (the baseline)"
+    )
+    playback.add_argument("snippets", nargs="*", help="snippet or clip ids (default: every snippet of the file)")
+    playback.add_argument("--clips", default=None, help=CLIPS_HELP)
+    playback.add_argument("--json", type=Path, default=None, help="also write the rows to this JSON file")
+    playback.set_defaults(handler=_playback)
     library = commands.add_parser("library", help="the shipped clip libraries, or one library's clips by kind")
     library.add_argument("name", nargs="?", default=None, help="a shipped library (default: list them)")
     library.set_defaults(handler=_library)
@@ -116,6 +123,44 @@ def _show(args: argparse.Namespace) -> None:
     result = record_clip(args.clips or "synthetic", args.clip_id, args.out, video=args.video, filmstrip=args.filmstrip)
     written = [str(result["path"]), *(str(p) for p in (result["video"], result["filmstrip"]) if p)]
     print(f"{args.clip_id}: {result['steps']} steps -> {', '.join(written)}")
+
+
+def _playback(args: argparse.Namespace) -> None:
+    from tqdm.auto import tqdm
+
+    from foundation.atomic import write_json
+    from tasks.clips.format import list_clips
+    from tasks.clips.snippets import parse_snippet_id, snippets_of_clip
+    from tasks.tracking.metrics import METRIC_LABELS
+    from tasks.tracking.playback import open_loop_playback
+    from tasks.walker import build_walker
+
+    path = _clip_file(args)
+    clips = list_clips(path)
+    wanted = []
+    for text in args.snippets or list(clips):
+        snippet = parse_snippet_id(text)
+        if snippet.clip_id not in clips:
+            raise SystemExit(f"{path} has no clip {snippet.clip_id}; see `mocap-hierarchy clips list`")
+        whole = snippet.end is None
+        wanted += [str(s) for s in snippets_of_clip(snippet.clip_id, clips[snippet.clip_id])] if whole else [text]
+    walker = build_walker()
+    rows = []
+    for snippet in tqdm(wanted, desc="playback", unit="snippet"):
+        row = open_loop_playback(snippet, str(path), walker=walker)
+        row.pop("seconds")
+        rows.append(row)
+    print(f"{'snippet':<26}{'reward':>8}{'length':>8}{'success':>9}{METRIC_LABELS['global_position_error_mm']:>14}")
+    for row in rows:
+        print(
+            f"{row['snippet']:<26}{row['normalized_reward']:>8.3f}{row['normalized_length']:>8.3f}"
+            f"{row['success']:>9.0f}{row['global_position_error_mm']:>14.0f}"
+        )
+    if args.json is not None:
+        write_json(args.json, {"clips": str(path), "protocol": PLAYBACK_PROTOCOL, "rows": rows})
+
+
+PLAYBACK_PROTOCOL = "reference poses as position targets, from each snippet's first frame, one deterministic episode"
 
 
 def _library(args: argparse.Namespace) -> None:

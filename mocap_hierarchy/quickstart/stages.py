@@ -7,7 +7,6 @@ result as JSON; :mod:`mocap_hierarchy.quickstart.pipeline` runs them through the
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -17,8 +16,7 @@ from tqdm.auto import tqdm
 
 from mocap_hierarchy.quickstart.config import EPISODE_LIMIT, EVALUATION_EPISODES, MODE_LABELS, QuickstartConfig
 from mocap_hierarchy.quickstart.progress import training_returns
-from tasks.tracking.env import ClipTrackingEnv, TrackingConfig, reference_action
-from tasks.tracking.metrics import episode_means, record_episode
+from tasks.tracking.playback import open_loop_playback
 from tasks.walker import build_walker
 
 
@@ -28,26 +26,10 @@ def playback_stage(snippets: list[str], library: str, config: QuickstartConfig) 
     walker = build_walker()
     rows, steps, seconds = [], 0, 0.0
     for snippet in tqdm(snippets, desc="playback per snippet", unit="snippet"):
-        env = ClipTrackingEnv(TrackingConfig(snippets=(snippet,), clips=library, init="start"), walker=walker)
-        metrics: dict[str, list[float]] = {}
-        for episode in range(episodes):
-            env.reset(seed=config.seed + episode)
-            began = time.perf_counter()
-            while True:
-                _, _, terminated, truncated, info = env.step(reference_action(env))
-                steps += 1
-                if terminated or truncated:
-                    break
-            seconds += time.perf_counter() - began
-            record_episode(metrics, info)
-        rows.append(
-            {
-                "snippet": snippet,
-                "normalized_reward": float(np.mean(metrics["normalized_reward"])),
-                "normalized_length": float(np.mean(metrics["normalized_length"])),
-                **episode_means(metrics),
-            }
-        )
+        row = open_loop_playback(snippet, library, episodes=episodes, seed=config.seed, walker=walker)
+        steps += row.pop("steps")
+        seconds += row.pop("seconds")
+        rows.append(row)
     return {"rows": rows, "env_steps_per_second": steps / seconds if seconds else 0.0}
 
 

@@ -86,7 +86,7 @@ def record_clip(
     if video is not None:
         from tasks.viz.video import VideoRecorder
 
-        env = VideoRecorder(env, video)
+        env = VideoRecorder(env, video, distance=5.0)
     zero = np.zeros(env.action_space.shape)
     result = record_rollout(env, lambda _: zero, out)
     if filmstrip is not None and video is not None:

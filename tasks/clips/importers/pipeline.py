@@ -27,7 +27,7 @@ from tasks.clips.importers.floor import FloorReport, put_feet_on_floor
 from tasks.clips.importers.resample import resample
 from tasks.clips.importers.trajectory import JointTrajectory, MotionImportError
 from tasks.clips.kinematics import clip_from_qpos
-from tasks.clips.snippets import SnippetId, snippets_of_clip
+from tasks.clips.snippets import SnippetId, mocapact_snippets, snippets_of_clip
 from tasks.walker import CONTROL_TIMESTEP, WalkerModel, build_walker
 
 if TYPE_CHECKING:
@@ -220,6 +220,11 @@ def _to_clip(trajectory: JointTrajectory, walker: WalkerModel) -> ImportedClip:
     clip = clip_from_qpos(walker, trajectory.clip_id, qpos, CONTROL_TIMESTEP, f"imported from {trajectory.source}")
     try:
         snippets = tuple(snippets_of_clip(clip.clip_id, clip.num_steps))
-    except ValueError as error:
-        raise MotionImportError(f"{trajectory.source}: {error}") from None
+    except ValueError:
+        expected = mocapact_snippets()[clip.clip_id][-1].end
+        raise MotionImportError(
+            f"{trajectory.source} imports as {clip.clip_id}, a CMU trial's id, with {clip.num_steps} steps, but that "
+            f"trial has {expected} in the CMU 2020 file (where MoCapAct's snippets end): this recording is not the "
+            "whole trial. Rename the file (e.g. to a name without the SS_TT form) to import it under another id"
+        ) from None
     return ImportedClip(clip=clip, source=trajectory.source, floor=floor, snippets=snippets)
