@@ -167,6 +167,83 @@ def asf_target() -> Target:
     )
 
 
+BVH_STRIDE = 4
+"""AMC frames per BVH frame: the fuzzed BVH runs at 30 frames per second (about 25 frames, quick to retarget)."""
+
+
+def _build_bvh(folder: Path) -> Path:
+    from tasks.clips.importers.amc import read_amc_values
+    from tasks.clips.importers.asf import read_asf
+    from tests.motion_files import write_cmu_bvh
+
+    values, _ = read_amc_values(_build_amc(folder))
+    (folder / "run_part.amc").unlink()
+    path = folder / "run_part.bvh"
+    write_cmu_bvh(read_asf(DATA / "09.asf"), values[::BVH_STRIDE], path, frame_period=BVH_STRIDE / 120)
+    return path
+
+
+def bvh_target() -> Target:
+    """A BVH of the CMU conversion, converted exactly to a clip."""
+    from tasks.clips.importers.trajectory import MotionImportError
+
+    def mutations(artifact: Path, rng: np.random.Generator) -> list[Case]:
+        data = artifact.read_bytes()
+        return text_cases(data, rng) + keyword_cases(
+            data,
+            {
+                b"HIERARCHY": b"HIERARCH",
+                b"MOTION": b"MOTIONS",
+                b"Frames:": b"Frame:",
+                b"Frame Time:": b"Time:",
+                b"CHANNELS 3": b"CHANNELS 4",
+                b"Zrotation": b"Wrotation",
+                b"End Site": b"End",
+                b"{": b"(",
+                b"LeftUpLeg": b"LeftThigh",
+                b"JOINT Spine": b"JOINT Hips",
+            },
+        )
+
+    return Target(
+        "BVH motion (`clips import`)", _build_bvh, lambda p: _import([p]), _judge_clips, (MotionImportError,), mutations
+    )
+
+
+def _build_joint_map(folder: Path) -> Path:
+    from importlib import resources
+
+    path = folder / "my_map.json"
+    path.write_bytes(resources.files("tasks.clips.importers").joinpath("joint_maps/cmu_bvh.json").read_bytes())
+    return path
+
+
+def joint_map_target() -> Target:
+    """A joint map (a copy of the shipped CMU one) retargeting a valid BVH by inverse kinematics."""
+    import json
+
+    from tasks.clips.importers.trajectory import MotionImportError
+    from tests.fuzzing import json_file_cases
+
+    def load(artifact: Path) -> Any:
+        from tasks.clips.importers.pipeline import import_motion
+
+        return import_motion([_build_bvh(artifact.parent)], joint_map=artifact, walker=_walker(), progress=False)
+
+    def mutations(artifact: Path, rng: np.random.Generator) -> list[Case]:
+        return json_file_cases("", json.loads(artifact.read_text()), rng)
+
+    return Target(
+        "joint map (`clips import --joint-map`)",
+        _build_joint_map,
+        load,
+        _judge_clips,
+        (MotionImportError,),
+        mutations,
+        may_write=("run_part.bvh", "run_part.amc"),
+    )
+
+
 def motion_targets() -> list[Target]:
     """Every motion input format, in the table's order."""
-    return [asf_target(), amc_target()]
+    return [asf_target(), amc_target(), bvh_target(), joint_map_target()]

@@ -189,10 +189,10 @@ def _library(args: argparse.Namespace) -> None:
 
 
 def _joint_maps(args: argparse.Namespace) -> None:
-    from tasks.clips.importers.joint_map import shipped_joint_maps
+    from tasks.clips.importers.joint_map import read_joint_map, shipped_joint_maps
 
-    for name, description in shipped_joint_maps().items():
-        print(f"{name:<14}{description}")
+    for name in shipped_joint_maps().names():
+        print(f"{name:<10}{read_joint_map(name).skeleton}")
 
 
 def _clip_file(args: argparse.Namespace) -> Path:

@@ -87,7 +87,7 @@ def record_clip(
         from tasks.viz.video import VideoRecorder
 
         env = VideoRecorder(env, video, distance=5.0)
-    zero = np.zeros(env.action_space.shape)
+    zero = np.zeros(clip.joints.shape[1])
     result = record_rollout(env, lambda _: zero, out)
     if filmstrip is not None and video is not None:
         from tasks.viz.filmstrip import write_filmstrip

@@ -129,3 +129,28 @@ def test_radians_files_are_read_as_radians(tmp_path):
     values, declared = read_amc_values(radians)
     assert declared
     np.testing.assert_allclose(values, degrees, atol=1e-9)
+
+
+def _write_bvh(folder: Path) -> Path:
+    from tests.motion_files import write_cmu_bvh
+
+    values, _ = read_amc_values(AMC)
+    path = folder / "09_11.bvh"
+    write_cmu_bvh(read_asf(ASF), values, path)
+    return path
+
+
+def test_a_bvh_of_the_cmu_conversion_imports_as_its_amc_does(tmp_path, walker):
+    (from_amc,) = import_motion([AMC], walker=walker, progress=False)
+    (from_bvh,) = import_motion([_write_bvh(tmp_path)], walker=walker, progress=False)
+    assert from_bvh.clip.clip_id == "CMU_009_11" and from_bvh.snippets == from_amc.snippets
+    np.testing.assert_allclose(from_bvh.clip.joints, from_amc.clip.joints, atol=1e-9)
+    np.testing.assert_allclose(from_bvh.clip.body_positions, from_amc.clip.body_positions, atol=1e-9)
+
+
+def test_a_bvh_of_another_skeleton_needs_a_joint_map(tmp_path, walker):
+    bvh = _write_bvh(tmp_path)
+    renamed = tmp_path / "other.bvh"
+    renamed.write_text(bvh.read_text().replace("LeftUpLeg", "L_Thigh"))
+    with pytest.raises(MotionImportError, match=r"other\.bvh.*joint map"):
+        import_motion([renamed], walker=walker, progress=False)

@@ -17,7 +17,7 @@ import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from tqdm.auto import tqdm
 
@@ -54,7 +54,7 @@ class ImportedClip:
     floor: FloorReport
     snippets: tuple[SnippetId, ...]
 
-    def summary(self) -> dict[str, AsfSkeleton]:
+    def summary(self) -> dict[str, Any]:
         """The clip's row of the import report (plain data)."""
         return {
             "clip_id": self.clip.clip_id,

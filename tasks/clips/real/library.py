@@ -85,7 +85,7 @@ def library_clips(name: str) -> list[LibraryClip]:
                 clip_id=clip_id,
                 kind=_text(f[clip_id].attrs["kind"]),
                 description=_text(f[clip_id].attrs["description"]),
-                steps=int(f[clip_id]["qpos"].shape[0]),
+                steps=int(_dataset(f, f"{clip_id}/qpos").shape[0]),
                 floor=json.loads(_text(f[clip_id].attrs["floor"])),
             )
             for clip_id in sorted(f.keys())
@@ -121,12 +121,12 @@ def expand_library(source: str | os.PathLike, out: str | os.PathLike, progress: 
     with h5py.File(source, "r") as f:
         for clip_id in tqdm(sorted(f.keys()), desc=f"clips of {Path(source).stem}", disable=not progress):
             group = f[clip_id]
-            qpos = np.asarray(group["qpos"], dtype=np.float64)
-            dt = float(group.attrs["dt"])
+            qpos = np.asarray(_dataset(f, f"{clip_id}/qpos"), dtype=np.float64)
+            dt = float(np.asarray(group.attrs["dt"]).item())
             kind, description = _text(group.attrs["kind"]), _text(group.attrs["description"])
             text = f"{kind}: {description} (CMU, {_text(group.attrs['source'])})"
             clips.append(clip_from_qpos(walker, clip_id, qpos, dt, text))
-        attrs = {key: _text(f.attrs[key]) for key in ("library", "attribution", "terms")}
+        attrs: dict[str, str | int] = {key: _text(f.attrs[key]) for key in ("library", "attribution", "terms")}
     return write_clips(out, clips, attrs=attrs)
 
 
@@ -158,6 +158,13 @@ def write_package_file(
                 group.attrs[key] = np.bytes_(text[key].encode())
             group.attrs["floor"] = np.bytes_(json.dumps(floor, sort_keys=True).encode())
     return out
+
+
+def _dataset(f: h5py.File, name: str) -> h5py.Dataset:
+    dataset = f[name]
+    if not isinstance(dataset, h5py.Dataset):
+        raise RealLibraryError(f"{f.filename}: {name} is not a dataset; reinstall the package")
+    return dataset
 
 
 def _text(value: object) -> str:
