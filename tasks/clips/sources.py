@@ -147,5 +147,5 @@ def shipped_clip_library(name: str, progress: bool = True) -> Path | None:
     if name == SYNTHETIC_LIBRARY_NAME:
         return ensure_synthetic_library(progress=progress)
     if name in REAL_LIBRARIES:
-        return real_library_path(name, progress=progress)
+        return real_library_path(name, cache_dir(), progress=progress)
     return None

@@ -66,7 +66,9 @@ def test_expanded_clips_are_forward_kinematics_of_the_packaged_positions(real_cl
 
 
 def test_the_cache_is_reused_and_a_name_that_is_not_shipped_lists_the_names(real_clips):
-    assert real_library_path(NAME, progress=False) == real_clips
+    from tasks.clips.sources import cache_dir
+
+    assert real_library_path(NAME, cache_dir(), progress=False) == real_clips
     with pytest.raises(ClipSourceError, match="cmu-locomotion-v1, synthetic"):
         resolve_clip_file("cmu-locomotion-v9", [])
     assert set(REAL_LIBRARIES) == {NAME}

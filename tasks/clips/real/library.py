@@ -92,17 +92,17 @@ def library_clips(name: str) -> list[LibraryClip]:
         ]
 
 
-def real_library_path(name: str, progress: bool = True) -> Path:
-    """The clip file of a shipped library, computed into the cache on first use.
+def real_library_path(name: str, cache: str | os.PathLike, progress: bool = True) -> Path:
+    """The clip file of a shipped library, computed into the folder ``cache`` on first use.
+
+    (:func:`tasks.clips.sources.resolve_clip_file` passes the library's cache folder.)
 
     The cached file's name carries the package file's hash and :data:`EXPANSION_VERSION`, so a new
     release or a new expansion is never confused with an old cache.
     """
-    from tasks.clips.sources import cache_dir
-
     source = package_file(name)
     digest = hashlib.sha256(source.read_bytes()).hexdigest()[:12]
-    path = cache_dir() / f"{name}-{digest}-x{EXPANSION_VERSION}.h5"
+    path = Path(cache) / f"{name}-{digest}-x{EXPANSION_VERSION}.h5"
     if not path.is_file():
         expand_library(source, path, progress=progress)
     return path
