@@ -238,12 +238,12 @@ def test_small_bvh_tree_and_forward_kinematics(small_bvh):
     np.testing.assert_array_equal(motion.root_translations(), [[1, 2, 3], [0, 0, 0]])
     positions, rotations = motion.global_positions()
     # Frame 0: hips at (1, 2, 3) turned 90 degrees about z (x -> y, y -> -x); the chest 1 above the hips
-    # lands at (1, 2, 3) + (-1, 0, 0); the chest turns 90 about x (y -> z), so the head's (0.5, 2, 0)
-    # (offset plus position channels) becomes (0.5, 0, 2), then (0, 0.5, 2) by the hips: (0, 2.5, 5).
-    np.testing.assert_allclose(positions[0], [[1, 2, 3], [0, 2, 3], [0, 2.5, 5]], atol=1e-12)
+    # lands at (1, 2, 3) + (-1, 0, 0); the chest turns 90 about x (y -> z), which leaves the head's (0.5, 0, 0)
+    # (its position channels, which replace its OFFSET) as it is, then (0, 0.5, 0) by the hips: (0, 2.5, 3).
+    np.testing.assert_allclose(positions[0], [[1, 2, 3], [0, 2, 3], [0, 2.5, 3]], atol=1e-12)
     # Frame 1: the chest turns Z 90 then X 90 (R = Rz Rx: x -> y, y -> z, z -> x); the head at
-    # (0, 1, 0) + (0, 0.5, 2). X then Z would have put it at (0, 1, 0) + (-2, 0, 0.5).
-    np.testing.assert_allclose(positions[1], [[0, 0, 0], [0, 1, 0], [0, 1.5, 2]], atol=1e-12)
+    # (0, 1, 0) + (0, 0.5, 0). X then Z would have put it at (0, 1, 0) + (0, 0, 0.5).
+    np.testing.assert_allclose(positions[1], [[0, 0, 0], [0, 1, 0], [0, 1.5, 0]], atol=1e-12)
     np.testing.assert_allclose(rotations[1, 1], [[0, 0, 1], [1, 0, 0], [0, 1, 0]], atol=1e-12)
     np.testing.assert_allclose(rotations[1, 2], rotations[1, 1], atol=0)  # position channels do not turn
     np.testing.assert_allclose(motion.local_rotations()[0, 0], [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-12)
@@ -328,3 +328,19 @@ def test_joint_name_on_brace_line_and_lower_case_channels_are_read(tmp_path):
     )
     motion = read_bvh(path)
     assert motion.joints[1].name == "Chest" and motion.joints[0].channels[:2] == ("Xposition", "Yposition")
+
+
+def test_position_channels_replace_the_offset_as_lafan1_files_expect(tmp_path):
+    from tasks.clips.importers.bvh import read_bvh
+
+    text = (
+        "HIERARCHY\nROOT Hips\n{\n  OFFSET 10 90 5\n  CHANNELS 6 Xposition Yposition Zposition Zrotation Yrotation"
+        " Xrotation\n  JOINT Spine\n  {\n    OFFSET 0 10 0\n    CHANNELS 3 Zrotation Yrotation Xrotation\n"
+        "    End Site\n    {\n      OFFSET 0 5 0\n    }\n  }\n}\nMOTION\nFrames: 2\nFrame Time: 0.0333333\n"
+        "10 90 5 0 0 0 0 0 0\n12 91 5 0 0 0 0 0 0\n"
+    )
+    path = tmp_path / "lafan_like.bvh"
+    path.write_text(text)
+    positions, _ = read_bvh(path).global_positions()
+    np.testing.assert_allclose(positions[:, 0], [[10, 90, 5], [12, 91, 5]])  # not doubled by the OFFSET
+    np.testing.assert_allclose(positions[:, 1], [[10, 100, 5], [12, 101, 5]])

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Trains the first real expert group, cmu-locomotion-v1: 24 snippets of the shipped real clip library covering
-# every kind it holds, with the synthetic release's recipe (--profile fast-3m-wide, one seed; training stops early
-# at 0.98 normalised length). Two lanes side by side on a 2-core machine, at low priority so interactive work
+# every kind it holds, with the synthetic release's recipe (--profile fast-3m-wide, one seed) on a first budget of
+# 1.5M steps each (BUDGET; the budget may change on resume: raise it for experts still short of 0.9 and rerun,
+# and they continue exactly where they stopped, done.json removed first). Two lanes side by side on a 2-core machine, at low priority so interactive work
 # comes first. Each lane trains one expert of every kind first, then the rest.
 # Resumable: rerun it after a kill (or in a new session) and every expert continues from its checkpoint; finished
-# ones are skipped. Where every run stands: python tools/release/expert_status.py runs/release-cmu-v1/experts
+# ones are skipped. Where every run stands: python -m tools.release.expert_status runs/release-cmu-v1/experts
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 export OMP_NUM_THREADS=1
@@ -15,9 +16,9 @@ mkdir -p $out
 train() {  # snippet [extra flags]
     local snippet=$1
     shift
-    if [ -f "$out/$snippet/done.json" ]; then return 0; fi
+    if [ -f "$out/$snippet/done.json" ]; then return 0; fi  # finished: skipped
     nice -n 10 mocap-hierarchy expert train --snippet "$snippet" --clips cmu-locomotion-v1 --out $out \
-        --profile fast-3m-wide --eval-episodes "50@0,500@2M" "$@"
+        --profile fast-3m-wide --eval-episodes "50@0,500@2M" --steps "${BUDGET:-1500000}" "$@"
 }
 
 lane_a() {  # walks, veers and turns, walking and running

@@ -5,7 +5,9 @@ units, parent frame), its ``CHANNELS`` (a count, then names among ``X/Y/Z positi
 children or an ``End Site``. ``MOTION`` says ``Frames: N`` and ``Frame Time: seconds``; each of the N
 following lines holds every channel's value, joints in file order, rotations in degrees. A joint's
 rotation composes its rotation channels in the order written (``R = R_first @ R_second @ R_third``,
-intrinsic); its translation from its parent is its ``OFFSET`` plus its position channels, if any.
+intrinsic); its translation from its parent is its ``OFFSET``, except along an axis where it has a
+position channel, whose value replaces it (as most readers take it: LAFAN1's files, for one, repeat
+the first frame's root position in the root's ``OFFSET``, which adding would count twice).
 """
 
 from __future__ import annotations
@@ -105,7 +107,7 @@ class BvhMotion:
         positions = np.zeros((len(self.values), len(self.joints), 3))
         rotations = np.zeros_like(local)
         for j, joint in enumerate(self.joints):
-            translation = joint.offset + self._translations(j)
+            translation = self._translations(j, joint.offset)
             if joint.parent < 0:
                 positions[:, j], rotations[:, j] = translation, local[:, j]
             else:
@@ -114,10 +116,13 @@ class BvhMotion:
                 rotations[:, j] = parent_rotation @ local[:, j]
         return positions, rotations
 
-    def _translations(self, joint: int) -> np.ndarray:
-        columns, translation = self.channel_columns()[joint], np.zeros((len(self.values), 3))
+    def _translations(self, joint: int, offset: np.ndarray | None = None) -> np.ndarray:
+        """A joint's position channels, ``offset`` (zero when None) where it has none for an axis."""
+        columns = self.channel_columns()[joint]
+        translation = np.tile(np.zeros(3) if offset is None else offset, (len(self.values), 1))
         for axis, name in enumerate(("Xposition", "Yposition", "Zposition")):
-            translation[:, axis] = self.values[:, columns[name]] if name in columns else 0.0
+            if name in columns:
+                translation[:, axis] = self.values[:, columns[name]]
         return translation
 
 
