@@ -14,6 +14,10 @@ from pathlib import Path
 DOCS = Path(__file__).resolve().parents[1]
 
 
+SHOWN_CLIPS = ("CMU_016_22", "CMU_016_17", "CMU_013_11", "CMU_105_46")
+"""Clips whose filmstrips (``docs/figures/real_clips/``) the page shows: a walk, a turn, a jump, a jump-turn."""
+
+
 def library_page_name(name: str) -> str:
     """The page of library ``name`` under ``models/``."""
     return f"clips-{name}.md"
@@ -53,7 +57,8 @@ def library_page(name: str) -> str:
         "```bash",
         f"mocap-hierarchy clips library {name}          # this composition",
         f"mocap-hierarchy clips show CMU_016_22 --clips {name} --out walk.rrd",
-        f"mocap-hierarchy expert train --snippet CMU_016_22-0-82 --clips {name} --out experts --profile fast-3m-wide",
+        f"mocap-hierarchy expert train --snippet CMU_016_22-0-82 --clips {name} \\",
+        "    --out experts --profile fast-3m-wide",
         "```",
         "",
         "It holds every trial of MoCapAct's list among the 146 at hand whose description is locomotion; ball games,",
@@ -70,6 +75,17 @@ def library_page(name: str) -> str:
         length = np.mean([playback[s]["normalized_length"] for s in ids])
         error = np.mean([playback[s]["global_position_error_mm"] for s in ids])
         lines.append(_row([kind, str(kinds[kind]), str(len(ids)), f"{seconds:.0f}", f"{length:.2f}", f"{error:.0f}"]))
+    lines += [
+        "",
+        "## A few of its clips",
+        "",
+        "The reference motion alone, no physics (`clips show ... --filmstrip`):",
+        "",
+    ]
+    for clip_id in SHOWN_CLIPS:
+        if (DOCS / "figures" / "real_clips" / f"{clip_id}.png").is_file():
+            kind = next(c.kind for c in clips if c.clip_id == clip_id)
+            lines += [f"![{clip_id}, {kind}](../figures/real_clips/{clip_id}.png)", ""]
     lines += [
         "",
         "## Every snippet, played open loop",
