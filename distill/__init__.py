@@ -5,7 +5,7 @@
 * :mod:`distill.npmp`: the multi-clip policy; its training writes the frozen decoder file;
 * :mod:`distill.gpt`: the motion GPT and motion completion;
 * :mod:`distill.trainer`: the one supervised loop NPMP and GPT training share
-  (its settings in :mod:`distill.trainer_config`).
+  (its settings in :mod:`distill.trainer_config`, its parts in :mod:`distill.supervised`).
 """
 
 from typing import TYPE_CHECKING

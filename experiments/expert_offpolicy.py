@@ -39,9 +39,9 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.vec_env import VecNormalize
 
 from distill.experts.config import EvaluationConfig, expert_profile
+from distill.experts.environments import training_envs
 from distill.experts.evaluation import evaluate_policy, training_task
 from distill.experts.files import ExpertDir
-from distill.experts.training import training_envs
 from foundation.atomic import write_json
 
 from learning_curves import plot, print_table, summarise

@@ -6,17 +6,23 @@ A config may nest another config dataclass (the PPO block) and hold
 nests, so a change can name a nested field directly (``learning_rate``) or with its
 block (``ppo.learning_rate``). TOML is read with the standard library and written here
 (only what configs hold: numbers, strings, booleans, lists and one level of tables).
+
+A config class that nests a block wears :func:`explains_moved_settings`: a keyword it has no
+field for (a setting given flat, as before the block existed, or a typo) raises
+:class:`UnknownSettingError`, which names the block the setting lives in and the call that works.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import difflib
+import functools
 import json
 import tomllib
 import typing
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 from foundation.schedule import Schedule, ScheduleError
 
@@ -25,6 +31,15 @@ T = TypeVar("T")
 
 class ConfigFileError(ValueError):
     """A config file or change names no such setting, or gives a value of the wrong type."""
+
+
+class UnknownSettingError(TypeError):
+    """A config was built with a keyword it has no field for: a nested block's setting given flat, or a typo.
+
+    A :class:`TypeError` (what Python raises for an unexpected keyword), so ``except TypeError`` still
+    catches it; the message names the block the setting lives in and the call that works, or lists
+    the fields.
+    """
 
 
 def nested_blocks(cls: type) -> dict[str, type]:
@@ -202,3 +217,128 @@ def _toml_value(value: Any) -> str:
     if isinstance(value, list):
         return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     raise ConfigFileError(f"cannot write {value!r} to TOML")
+
+
+def explains_moved_settings(cls: type[T]) -> type[T]:
+    """Class decorator, above ``@dataclass``: keywords the config has no field for raise :class:`UnknownSettingError`.
+
+    A setting of a nested block given at the top (``TransferConfig(minibatch_size=512)``, the flat
+    form of before the PPO block) gets a message naming the block and the call that works
+    (:func:`with_settings`, or the block spelt out when that keeps the same defaults); any other
+    unknown keyword gets the fields listed, with the closest setting name when there is one. Calls
+    with known keywords go straight to the dataclass's ``__init__``, whose signature stays visible.
+
+    Args:
+        cls: A config dataclass.
+
+    Returns:
+        ``cls``, its ``__init__`` wrapped.
+    """
+    init = cast(Any, cls).__init__
+    known = frozenset(f.name for f in dataclasses.fields(cast(Any, cls)) if f.init)
+
+    @functools.wraps(init)
+    def checked_init(self: Any, *args: Any, **kwargs: Any) -> None:
+        if not known.issuperset(kwargs):
+            raise UnknownSettingError(unknown_setting_message(cls, args, kwargs))
+        init(self, *args, **kwargs)
+
+    setattr(cls, "__init__", checked_init)  # noqa: B010 (pyright refuses assigning a method to a class)
+    return cls
+
+
+def unknown_setting_message(cls: type, args: tuple[Any, ...], kwargs: Mapping[str, Any]) -> str:
+    """What :func:`explains_moved_settings` says about the call ``cls(*args, **kwargs)``.
+
+    Args:
+        cls: The config dataclass.
+        args: The call's positional arguments.
+        kwargs: The call's keywords, at least one of which ``cls`` has no field for.
+
+    Returns:
+        The message: where each moved setting lives now and the call that works, or (for a
+        keyword that is no setting at all) the fields of ``cls`` and of its blocks.
+    """
+    fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
+    homes = setting_names(cls)
+    blocks = nested_blocks(cls)
+    call = _call_text(cls.__name__, args, kwargs, fields)
+    typos = [name for name in kwargs if name not in fields and homes.get(name) is None]
+    if typos:
+        return f"{call}: " + "; ".join(_typo_text(cls, name, homes) for name in typos) + f"; {_fields_text(cls)}"
+    moved: dict[str, dict[str, Any]] = {}
+    for name, value in kwargs.items():
+        if name not in fields:
+            moved.setdefault(cast(str, homes[name]), {})[name] = value
+    where = "; ".join(
+        f"{' and '.join(values)} {'is a' if len(values) == 1 else 'are'} {blocks[block].__name__} "
+        f"setting{'s' if len(values) > 1 else ''} now, in the nested block {block!r}"
+        for block, values in moved.items()
+    )
+    top = {name: value for name, value in kwargs.items() if name in fields}
+    changes = {name: value for values in moved.values() for name, value in values.items()}
+    through_settings = (
+        f"with_settings({_call_text(cls.__name__, args, top, fields)}, {changes!r})"
+        " (from foundation.config_files import with_settings)"
+    )
+    spelt_out = {block: _Code(_call_text(blocks[block].__name__, (), values)) for block, values in moved.items()}
+    spelt = _call_text(cls.__name__, args, {**top, **spelt_out}, fields)
+    if any(block in kwargs for block in moved):  # the block is given too: change it, keeping what it says
+        return f"{call}: {where}; write {through_settings}"
+    if all(_default_is_plain(fields[block], blocks[block]) for block in moved):
+        return f"{call}: {where}; write {spelt} or {through_settings}"
+    return (
+        f"{call}: {where}; write {through_settings}; not {spelt}, which would reset the block's other "
+        f"settings from {cls.__name__}'s defaults to {', '.join(blocks[block].__name__ for block in moved)}'s"
+    )
+
+
+class _Code(str):
+    """Text that a call's rendering shows as it is (a nested call), not as its ``repr``."""
+
+    def __repr__(self) -> str:
+        return str(self)
+
+
+def _call_text(
+    name: str, args: tuple[Any, ...], kwargs: Mapping[str, Any], fields: Mapping[str, dataclasses.Field] | None = None
+) -> str:
+    """``name(...)`` with the arguments; keywords equal to their field's default are left out (they change nothing)."""
+    shown = [repr(a) for a in args]
+    shown += [
+        f"{k}={v!r}" for k, v in kwargs.items() if fields is None or k not in fields or not _is_default(fields[k], v)
+    ]
+    return f"{name}({', '.join(shown)})"
+
+
+def _is_default(f: dataclasses.Field, value: Any) -> bool:
+    try:
+        default = f.default_factory() if f.default_factory is not dataclasses.MISSING else f.default
+        return bool(default == value)
+    except Exception:  # a value whose comparison fails is shown
+        return False
+
+
+def _default_is_plain(f: dataclasses.Field, block: type) -> bool:
+    """Whether the field's default block is ``block()``: spelling the block out then keeps its defaults."""
+    try:
+        return _is_default(f, block())
+    except Exception:  # a block that needs arguments has no plain default
+        return False
+
+
+def _typo_text(cls: type, name: str, homes: Mapping[str, str | None]) -> str:
+    text = f"{cls.__name__} has no setting {name!r}"
+    close = difflib.get_close_matches(name, list(homes), n=1)
+    if close:
+        block = homes[close[0]]
+        text += f" (did you mean {close[0]!r}{f', in the nested block {block!r}' if block else ''}?)"
+    return text
+
+
+def _fields_text(cls: type) -> str:
+    fields = sorted(f.name for f in dataclasses.fields(cls) if f.init)
+    text = f"its fields: {', '.join(fields)}"
+    for block, kind in nested_blocks(cls).items():
+        text += f"; the nested block {block!r} ({kind.__name__}) holds: {', '.join(sorted(setting_names(kind)))}"
+    return text

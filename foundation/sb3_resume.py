@@ -15,7 +15,7 @@ SB3 starts a rollout (after the update before it):
 * the process's random generators (:mod:`foundation.random_state`): torch's draws the actions,
   NumPy's global one shuffles the minibatches;
 * the environments below the normaliser, through :class:`EnvSnapshots` (the caller's: see
-  :mod:`tasks.vec_env_state`), or why they could not be snapshotted;
+  :mod:`tasks.state.vec_env_state`), or why they could not be snapshotted;
 * the caller's run state, as plain data.
 
 Nothing of a rollout is in it: a run stopped mid-rollout writes the boundary before that rollout, and
@@ -62,7 +62,7 @@ class EnvSnapshots:
         get: The state of a ``VecEnv`` (plain data).
         set: Puts such a state into a ``VecEnv`` of the same make.
         refusal: The error ``get`` and ``set`` raise for environments that cannot be snapshotted, or a
-            snapshot that does not fit (e.g. :class:`tasks.env_state.EnvStateError`).
+            snapshot that does not fit (e.g. :class:`tasks.state.env_state.EnvStateError`).
 
     Attributes:
         problem: Why the environments could not be snapshotted (None while they could); once set,

@@ -1,7 +1,8 @@
 """The parts every model card page is made of: its eight sections, file facts, tables and links.
 
 :mod:`hierarchy.card_page` builds a page per kind of file (decoder, latent prior,
-task policy) from these parts; nothing here knows a kind. A page has the same
+task policy) from these parts; nothing here knows a kind beyond the name of its card's
+documentation page (:func:`card_page_name`). A page has the same
 sections, in the same order, whatever it describes (:data:`SECTIONS`), and reads
 nothing but the file it describes (and, for a shipped file, its shipped companion).
 """
@@ -138,6 +139,18 @@ class DocLinks:
         if self.prefix is not None:
             return f"[{text}]({page_name})"
         return f"{text} (`{command}`)"
+
+
+def card_page_name(name: str, kind: str = "decoder") -> str:
+    """The documentation page of shipped decoder ``name``'s card (``kind`` ``prior``: of its latent prior).
+
+    ``kind`` ``policy``: of shipped task policy ``name`` (``synthetic-v3/velocity_control`` has
+    ``task-policy-synthetic-v3-velocity_control.md``); ``expert``: of shipped snippet expert ``name``
+    (``expert-synthetic-v3-SYN_walk_slow-0-182.md``); ``gpt``: of shipped motion GPT ``name`` (``gpt-NAME.md``).
+    """
+    if kind in ("policy", "expert", "gpt"):
+        return f"{'task-policy' if kind == 'policy' else kind}-{name.replace('/', '-')}.md"
+    return f"{name}-prior.md" if kind == "prior" else f"{name}.md"
 
 
 def in_card_order(*parts: Sequence[str]) -> dict[str, Sequence[str]]:

@@ -24,7 +24,7 @@ decoder (stochastic: it has a spread ``sigma(s)``) the residual is in units of
 that spread, ``z = mu(s) + sigma(s) a``: a Gaussian high-level policy starting
 at ``a ~ N(0, I)`` explores by sampling the prior.
 
-Both forms have ``get_state``/``set_state`` (:mod:`tasks.env_state`): the decoder and the prior
+Both forms have ``get_state``/``set_state`` (:mod:`tasks.state.env_state`): the decoder and the prior
 are frozen, so their state is the last observation the next latent is decoded on.
 :class:`LatentActionEnv`'s snapshot covers the task it wraps too; :class:`LatentActionVecEnv`'s
 covers only itself (its environments' snapshots come from ``venv.env_method("get_state")``).
@@ -42,7 +42,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 from foundation.snapshots import plain_copy
 from hierarchy.decoder import DecoderMismatchError, LatentDecoder
 from hierarchy.latent_prior import LatentPrior
-from tasks.env_state import check_state_class, get_env_state, set_env_state, state_class
+from tasks.state.env_state import check_state_class, get_env_state, set_env_state, state_class
 
 
 def observation_sizes(space: gym.Space) -> dict[str, int]:
@@ -170,7 +170,7 @@ class LatentActionEnv(gym.Wrapper):
         Returns:
             ``{"class", "observation", "env"}``: the class name, the last observation (the
             decoder's next input; ``{}`` before the first reset) and
-            :func:`tasks.env_state.get_env_state` of the wrapped environment.
+            :func:`tasks.state.env_state.get_env_state` of the wrapped environment.
         """
         return {
             "class": state_class(self),
@@ -182,7 +182,7 @@ class LatentActionEnv(gym.Wrapper):
         """Restores a :meth:`get_state` into this wrapper and the task it wraps.
 
         Raises:
-            tasks.env_state.EnvStateError: The snapshot does not fit this wrapper or its task.
+            tasks.state.env_state.EnvStateError: The snapshot does not fit this wrapper or its task.
         """
         check_state_class(self, state)
         set_env_state(self.env, state["env"])
@@ -277,7 +277,7 @@ class LatentActionVecEnv(VecEnvWrapper):
         """Restores a :meth:`get_state` of this wrapper (not of the environments below).
 
         Raises:
-            tasks.env_state.EnvStateError: The snapshot is of another class.
+            tasks.state.env_state.EnvStateError: The snapshot is of another class.
         """
         check_state_class(self, state)
         self._observation = None if state["observation"] is None else plain_copy(state["observation"])

@@ -8,7 +8,7 @@
   the CMU humanoid, its observables, the control step, quaternion math
   (:mod:`tasks.observable_sets`: the observables' names, sizes and sets as plain data);
 * :mod:`tasks.registry`: ``make``, ``register`` and the Gymnasium ids;
-* :mod:`tasks.env_state`: snapshots of any environment here (``get_state``/``set_state``), wrapped or not.
+* :mod:`tasks.state.env_state`: snapshots of any environment here (``get_state``/``set_state``), wrapped or not.
 
 ``tasks.make(name, **overrides)`` builds any registered task (built-in, registered
 at run time with :func:`register`, or installed through the ``mocap_hierarchy.tasks``

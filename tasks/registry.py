@@ -118,7 +118,7 @@ REGISTRY: dict[str, TaskEntry] = {
         TaskEntry(
             "tracking",
             _gym_id("tracking"),
-            "tasks.tracking.env:TrackingConfig",
+            "tasks.tracking.config:TrackingConfig",
             "tasks.tracking.env:ClipTrackingEnv",
             "multi-clip tracking of the synthetic library (ref_steps 1..5, every observable)",
             _whole_synthetic_library,
@@ -126,7 +126,7 @@ REGISTRY: dict[str, TaskEntry] = {
         TaskEntry(
             "tracking_expert",
             _gym_id("tracking_expert"),
-            "tasks.tracking.env:TrackingConfig",
+            "tasks.tracking.config:TrackingConfig",
             "tasks.tracking.env:ClipTrackingEnv",
             "one-snippet expert tracking (ref_steps 0, the paper's expert observables)",
             {"ref_steps": (0,), "observables": "expert"},

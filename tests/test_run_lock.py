@@ -185,7 +185,7 @@ def test_the_command_line_refuses_a_busy_output_folder_with_status_75(tmp_path, 
 
 
 def test_under_torchrun_only_rank_0_takes_the_run_lock(tmp_path, monkeypatch):
-    from distill.trainer import writer_lock
+    from distill.supervised.processes import writer_lock
 
     out = tmp_path / "distill"
     monkeypatch.setenv("WORLD_SIZE", "2")

@@ -24,8 +24,8 @@ from foundation.sb3_resume import (
     take_boundary,
     write_boundary,
 )
-from tasks.env_state import StateWrapper
-from tasks.vec_env_state import vec_env_snapshots
+from tasks.state.env_state import StateWrapper
+from tasks.state.vec_env_state import vec_env_snapshots
 
 PPO = with_settings(PpoConfig(), {"minibatch_size": 32, "epochs": 2, "hidden_layers": (16, 16), "schedule": "adaptive"})
 """The adaptive rule: the resumed run's first step size follows the KL of the update before the boundary."""

@@ -14,7 +14,7 @@ from typing import Protocol
 import numpy as np
 
 from distill.experts.policy import ExpertOutput, gaussian_log_prob
-from tasks.tracking.env import TrackingConfig
+from tasks.tracking.config import TrackingConfig
 
 ROLLOUT_REF_STEPS = (1, 2, 3, 4, 5)
 

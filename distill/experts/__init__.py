@@ -6,6 +6,7 @@ from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
     from distill.experts.config import EvaluationConfig, ExpertConfig, expert_profile
+    from distill.experts.environments import training_envs
     from distill.experts.evaluation import EvaluationResult, evaluate_policy
     from distill.experts.fanout import Job, JobReport, run_jobs, summarise
     from distill.experts.files import ExpertDir, ExpertFilesError, expert_dir_for, find_experts
@@ -14,7 +15,7 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from distill.experts.policy import ExpertOutput, ExpertPolicy, ExpertSpec, policy_from_sb3
     from distill.experts.sb3_import import convert_sb3_expert
     from distill.experts.shipped import resolve_experts, shipped_experts
-    from distill.experts.training import ConfigMismatchError, TrainingResult, expert_jobs, train_expert, training_envs
+    from distill.experts.training import ConfigMismatchError, TrainingResult, expert_jobs, train_expert
 
 __all__ = [
     "ConfigMismatchError",
@@ -79,6 +80,6 @@ __getattr__, __dir__ = lazy_exports(
         "run_jobs": "distill.experts.fanout",
         "summarise": "distill.experts.fanout",
         "train_expert": "distill.experts.training",
-        "training_envs": "distill.experts.training",
+        "training_envs": "distill.experts.environments",
     },
 )

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 from importlib import resources
 from typing import Any
 
-from foundation.config_files import config_from_dict
+from foundation.config_files import config_from_dict, explains_moved_settings
 from foundation.cores import available_cores
 from foundation.ppo import PpoConfig
 from foundation.schedule import Schedule
@@ -23,6 +23,7 @@ def _batched_ppo() -> PpoConfig:
     return PpoConfig(learning_rate=Schedule.constant(3e-4), schedule="adaptive", epochs=5, minibatch_size=8192)
 
 
+@explains_moved_settings
 @dataclass(frozen=True)
 class ExpertConfig:
     """How to train one clip-snippet expert with PPO (defaults: the paper's Table 1, B.1.2).
@@ -172,6 +173,7 @@ def expert_profile(name: str) -> ExpertConfig:
     return config_from_dict(ExpertConfig, tomllib.loads(text), f"profile {name}")
 
 
+@explains_moved_settings
 @dataclass(frozen=True)
 class BatchedExpertConfig:
     """How to train many snippet experts at once on the batched engine (MuJoCo Warp, rsl_rl's PPO).

@@ -19,7 +19,8 @@ GPT. Rolled out, it is what makes an exact key/value cache possible: a step's
 keys and values never change once computed, so each new step costs one token
 (:meth:`MotionGpt.step` with a :class:`KvCache`), and the cached actions equal
 a from-scratch evaluation of the same function over the history
-(:meth:`MotionGpt.predict` on the last :attr:`MotionGpt.receptive_field` steps).
+(:meth:`MotionGpt.predict` on the last :attr:`MotionGpt.receptive_field` steps). The
+layers, the rotary tables and the cache are in :mod:`distill.gpt.layers`.
 MoCapAct instead recomputes only the last 32 steps at every step; that is a
 different function once an episode is longer than the context (the lower
 layers then see less history), available as ``context="window"`` in
@@ -43,10 +44,10 @@ from typing import Any, cast
 
 import numpy as np
 import torch
-import torch.nn.functional as F
 from torch import nn
 
 from distill.gpt.config import GptConfig  # defined there (light), used and re-exported here
+from distill.gpt.layers import Block, KvCache, rotary_tables
 from distill.gpt.shipped import names_hint, resolve_gpt
 from foundation.described_file import check_layout, read_described, write_described
 from foundation.json_fields import dataclass_from_json
@@ -92,126 +93,6 @@ class GptSpec:
         return sum(self.observation_sizes.values())
 
 
-# Rotary positions ---------------------------------------------------------------------
-
-
-def rotary_tables(positions: torch.Tensor, head_size: int, base: float) -> tuple[torch.Tensor, torch.Tensor]:
-    """``cos`` and ``sin`` of the rotation angles, ``positions.shape + (head_size / 2,)`` (computed in float64)."""
-    frequencies = base ** (-torch.arange(0, head_size, 2, dtype=torch.float64, device=positions.device) / head_size)
-    angles = positions.to(torch.float64)[..., None] * frequencies
-    return angles.cos(), angles.sin()
-
-
-def rotate(x: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor) -> torch.Tensor:
-    """Rotates pairs ``(x_i, x_{i + d/2})`` of the last axis by the tabled angles."""
-    half = x.shape[-1] // 2
-    first, second = x[..., :half], x[..., half:]
-    cos, sin = cos.to(x.dtype), sin.to(x.dtype)
-    return torch.cat([first * cos - second * sin, first * sin + second * cos], dim=-1)
-
-
-# The network ------------------------------------------------------------------------------
-
-
-@dataclass
-class KvCache:
-    """Keys and values of the last ``block_size`` steps of ``rows`` independent rollouts.
-
-    A ring buffer per layer: step ``p`` of a row lives in slot ``p % block_size``.
-    Keys are stored rotated to their absolute step, so attention needs no
-    reordering. Make one with :meth:`MotionGpt.new_cache`.
-
-    Attributes:
-        keys: Per layer ``(rows, heads, block_size, head_size)``.
-        values: Per layer, same shape.
-        slot_steps: ``(rows, block_size)`` step held by each slot (-1: empty).
-        steps: ``(rows,)`` the next step of each row (0 after a reset).
-    """
-
-    keys: list[torch.Tensor]
-    values: list[torch.Tensor]
-    slot_steps: torch.Tensor
-    steps: torch.Tensor
-
-    def reset(self, rows: np.ndarray | list[int] | None = None) -> None:
-        """Forgets the history of ``rows`` (all when None): their next step is step 0."""
-        index = slice(None) if rows is None else torch.as_tensor(np.asarray(rows, dtype=np.int64))
-        self.slot_steps[index] = -1
-        self.steps[index] = 0
-
-
-class _Attention(nn.Module):
-    def __init__(self, config: GptConfig) -> None:
-        super().__init__()
-        self.heads = config.heads
-        self.head_size = config.embedding_size // config.heads
-        self.qkv = nn.Linear(config.embedding_size, 3 * config.embedding_size)
-        self.proj = nn.Linear(config.embedding_size, config.embedding_size)
-        self.attention_dropout = config.attention_dropout
-        self.residual_dropout = nn.Dropout(config.residual_dropout)
-
-    def _split(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        *lead, _ = x.shape
-        q, k, v = self.qkv(x).view(*lead, 3, self.heads, self.head_size).unbind(-3)
-        return q, k, v
-
-    def forward(self, x: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor, mask: torch.Tensor | None) -> torch.Tensor:
-        """Sequence form: ``x`` ``(B, T, C)``; ``mask`` None means plain causal."""
-        size, steps, width = x.shape
-        q, k, v = (t.transpose(1, 2) for t in self._split(x))  # (B, H, T, d)
-        q, k = rotate(q, cos, sin), rotate(k, cos, sin)
-        dropout = self.attention_dropout if self.training else 0.0
-        if mask is None:
-            y = F.scaled_dot_product_attention(q, k, v, dropout_p=dropout, is_causal=True)
-        else:
-            y = F.scaled_dot_product_attention(q, k, v, attn_mask=mask, dropout_p=dropout)
-        return self.residual_dropout(self.proj(y.transpose(1, 2).reshape(size, steps, width)))
-
-    def step(
-        self,
-        x: torch.Tensor,
-        cos: torch.Tensor,
-        sin: torch.Tensor,
-        keys: torch.Tensor,
-        values: torch.Tensor,
-        rows: torch.Tensor,
-        slots: torch.Tensor,
-        valid: torch.Tensor,
-    ) -> torch.Tensor:
-        """One new step per row: ``x`` ``(N, C)``; writes its key/value into the cache first."""
-        q, k, v = self._split(x)  # (N, H, d)
-        q, k = rotate(q, cos[:, None], sin[:, None]), rotate(k, cos[:, None], sin[:, None])
-        keys[rows, :, slots] = k
-        values[rows, :, slots] = v
-        row_keys, row_values = keys[rows], values[rows]  # (N, H, W, d)
-        scores = (q[:, :, None, :] @ row_keys.transpose(-1, -2)) / math.sqrt(self.head_size)  # (N, H, 1, W)
-        scores = scores.masked_fill(~valid[:, None, None, :], float("-inf"))
-        y = (scores.softmax(-1) @ row_values)[:, :, 0]  # (N, H, d)
-        return self.proj(y.reshape(len(x), -1))
-
-
-class _Block(nn.Module):
-    def __init__(self, config: GptConfig) -> None:
-        super().__init__()
-        self.norm1 = nn.LayerNorm(config.embedding_size)
-        self.attention = _Attention(config)
-        self.norm2 = nn.LayerNorm(config.embedding_size)
-        self.mlp = nn.Sequential(
-            nn.Linear(config.embedding_size, 4 * config.embedding_size),
-            nn.GELU(),
-            nn.Linear(4 * config.embedding_size, config.embedding_size),
-            nn.Dropout(config.residual_dropout),
-        )
-
-    def output_projections(self) -> list[nn.Linear]:
-        """The linear layers that write into the residual stream."""
-        return [self.attention.proj, cast(nn.Linear, self.mlp[2])]
-
-    def forward(self, x: torch.Tensor, cos: torch.Tensor, sin: torch.Tensor, mask: torch.Tensor | None):
-        x = x + self.attention(self.norm1(x), cos, sin, mask)
-        return x + self.mlp(self.norm2(x))
-
-
 class MotionGpt(nn.Module):
     """The GPT (see the module docstring).
 
@@ -233,7 +114,7 @@ class MotionGpt(nn.Module):
         self.head_size = config.embedding_size // config.heads
         self.embed = nn.Linear(spec.observation_size, config.embedding_size)
         self.embedding_dropout = nn.Dropout(config.embedding_dropout)
-        self.blocks = nn.ModuleList(_Block(config) for _ in range(config.layers))
+        self.blocks = nn.ModuleList(Block(config) for _ in range(config.layers))
         self.norm = nn.LayerNorm(config.embedding_size)
         self.head = nn.Linear(config.embedding_size, spec.action_size)
         for name, value in (("observation_mean", observation_mean), ("observation_std", observation_std)):
@@ -246,8 +127,8 @@ class MotionGpt(nn.Module):
             for projection in block.output_projections():
                 nn.init.normal_(projection.weight, std=0.02 / math.sqrt(2 * config.layers))
 
-    def _block_list(self) -> list[_Block]:
-        return [cast(_Block, block) for block in self.blocks]
+    def _block_list(self) -> list[Block]:
+        return [cast(Block, block) for block in self.blocks]
 
     @property
     def receptive_field(self) -> int:

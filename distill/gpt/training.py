@@ -31,13 +31,12 @@ from distill.gpt.config import (  # defined there (light), used and re-exported 
 )
 from distill.gpt.cost import cpu_cost_message
 from distill.gpt.model import GPT_FILE, GptConfig, GptSpec, MotionGpt
+from distill.supervised.processes import distributed_from_environment, writer_lock
 from distill.trainer import (
     TrainerConfig,
     TrainingOutcome,
-    distributed_from_environment,
     train_on_dataset,
     write_run_summary,
-    writer_lock,
 )
 from foundation.provenance import provenance
 

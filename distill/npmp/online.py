@@ -23,7 +23,7 @@ student's own states and labels them with the teachers' mean actions (Ross et al
   (its sampler: weighting and upsampling as offline), each stream seeded apart and positioned by the step.
   Observations of both are standardised with the dataset's statistics, which the student also carries.
 * **What a checkpoint holds** (:meth:`OnlineBatches.state_dict`, stored by :func:`distill.trainer.train`
-  beside the weights): the buffer's arrays, every environment's complete state (:mod:`tasks.env_state`), the
+  beside the weights): the buffer's arrays, every environment's complete state (:mod:`tasks.state.env_state`), the
   observation each acts on next, who drives each episode in progress and the student's latents, and the
   collection's random generator. The window streams need nothing: their position is the step. So a stopped
   run, rerun, writes the files an uninterrupted run writes, byte for byte.
@@ -44,7 +44,8 @@ from distill.npmp.collection_envs import Standing, collection_envs
 from distill.npmp.config import OnlineDistillConfig  # defined there (light), used and re-exported here
 from distill.npmp.model import NpmpPolicy
 from distill.npmp.teachers import labels_for, tracking_config
-from distill.trainer import TrainerConfig, distributed_from_environment
+from distill.supervised.processes import distributed_from_environment
+from distill.trainer import TrainerConfig
 from foundation.snapshots import from_storable, generator_from_state, generator_state, to_storable
 
 _COLLECTION, _ENV_SEEDS, _WINDOWS = 1, 2, 3

@@ -33,13 +33,13 @@ from distill.npmp.config import (  # defined there (light), used and re-exported
     default_sampler,
 )
 from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec, start_from
+from distill.supervised.processes import writer_lock
 from distill.trainer import (
     DatasetTraining,
     TrainerConfig,
     TrainingOutcome,
     train_on_dataset,
     write_run_summary,
-    writer_lock,
 )
 from foundation.config_cli import dataclass_flags
 from foundation.config_files import config_to_dict

@@ -34,7 +34,7 @@ from clip_library_pages import clip_library_pages
 DOCS = Path(__file__).resolve().parents[1]
 
 CONFIG_CLASSES = (
-    "tasks.tracking.env.TrackingConfig",
+    "tasks.tracking.config.TrackingConfig",
     "tasks.downstream.go_to_target.GoToTargetConfig",
     "tasks.downstream.velocity_control.VelocityControlConfig",
     "tasks.downstream.motion_completion.MotionCompletionConfig",
@@ -251,7 +251,7 @@ def model_pages() -> dict[str, str]:
     from distill.experts.files import ExpertDir
     from distill.experts.shipped import shipped_experts
     from distill.gpt.shipped import shipped_gpts
-    from hierarchy.card_page import card_page_name
+    from hierarchy.card_markdown import card_page_name
     from hierarchy.latent_prior import shipped_priors
     from hierarchy.pretrained import pretrained_decoders, shipped_task_policies
 
@@ -281,7 +281,7 @@ def snippet_experts_page() -> str:
     """The shipped snippet experts: name and scores of each, linked to its card."""
     from distill.experts.loading import load_expert
     from distill.experts.shipped import shipped_experts
-    from hierarchy.card_page import card_page_name
+    from hierarchy.card_markdown import card_page_name
 
     shipped = shipped_experts()
     lines = [
@@ -321,8 +321,7 @@ TASK_POLICIES_PAGE = "task-policies.md"
 
 def task_policies_page() -> str:
     """The shipped task policies: name, task, decoder and summary of each, linked to its card."""
-    from hierarchy.card_markdown import read_file_facts
-    from hierarchy.card_page import card_page_name
+    from hierarchy.card_markdown import card_page_name, read_file_facts
     from hierarchy.model_card import CARD_KEY
     from hierarchy.pretrained import shipped_task_policies
 

@@ -4,6 +4,8 @@
 recorded before the block existed wrote its fields at the top of their config
 (``transfer.json``, ``checkpoint/settings.json``): :func:`nested_config_dict` reads that
 flat form as the nested one, and :func:`flat_config_dict` writes a nested config back in it.
+Code in the flat form (``TransferConfig(minibatch_size=512)``) gets an error naming the block and
+the call that works (:func:`foundation.config_files.explains_moved_settings`).
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from foundation.config_files import explains_moved_settings
 from foundation.ppo import PpoConfig
 from foundation.schedule import Schedule
 
@@ -50,6 +53,7 @@ def _paper_ppo() -> PpoConfig:
     )
 
 
+@explains_moved_settings
 @dataclass(frozen=True)
 class TransferConfig:
     """High-level PPO settings (defaults: the paper's Table 3).

@@ -69,8 +69,8 @@ from hierarchy.transfer.run_folder import (
     resume_settings,
 )
 from hierarchy.transfer.task_source import TaskSource
-from tasks.env_state import StateWrapper
-from tasks.vec_env_state import vec_env_snapshots
+from tasks.state.env_state import StateWrapper
+from tasks.state.vec_env_state import vec_env_snapshots
 
 
 def train_transfer(
@@ -239,7 +239,7 @@ def _vec_env(
 ):
     """Raw task environments, decoded in one batch, then SB3's observation/reward normaliser.
 
-    Each environment's outermost layer is a :class:`tasks.env_state.StateWrapper`, which snapshots it
+    Each environment's outermost layer is a :class:`tasks.state.env_state.StateWrapper`, which snapshots it
     (its ``Monitor`` included) in a worker process as in this one.
     """
     from stable_baselines3.common.env_util import make_vec_env

@@ -59,7 +59,8 @@ def _distill_train(args: argparse.Namespace) -> None:
     from distill.dataset.sampler import SamplerConfig
     from distill.npmp.model import NpmpConfig
     from distill.npmp.training import OnlineDistillConfig, default_sampler, train_npmp
-    from distill.trainer import TrainerConfig, distributed_from_environment
+    from distill.supervised.processes import distributed_from_environment
+    from distill.trainer import TrainerConfig
 
     online = dataclass_from_args(OnlineDistillConfig, args) if args.online else None
     given = given_fields(OnlineDistillConfig, args)

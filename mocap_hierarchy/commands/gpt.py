@@ -115,7 +115,8 @@ def _train(args: argparse.Namespace) -> None:
     from distill.dataset.sampler import SamplerConfig
     from distill.gpt.model import GptConfig
     from distill.gpt.training import default_gpt_sampler, default_gpt_trainer, train_gpt
-    from distill.trainer import TrainerConfig, distributed_from_environment
+    from distill.supervised.processes import distributed_from_environment
+    from distill.trainer import TrainerConfig
 
     gpt = dataclass_from_args(GptConfig, args)
     result = train_gpt(

@@ -11,7 +11,7 @@ finds its inputs) plus the task's own keys.
 
 Snapshots: :meth:`WalkerTaskEnv.get_state` and :meth:`WalkerTaskEnv.set_state` save and restore
 the physics, ``np_random`` and every attribute a class lists in ``episode_attributes`` (a task
-lists those its episodes change), so a restored task continues bit for bit (:mod:`tasks.env_state`).
+lists those its episodes change), so a restored task continues bit for bit (:mod:`tasks.state.env_state`).
 
 Every step's ``info`` carries ``task_reward`` (the task's own reward for the step)
 and ``task_return`` (its sum so far in the episode). They equal the reward and the
@@ -30,16 +30,6 @@ import gymnasium as gym
 import mujoco
 import numpy as np
 
-from tasks.env_state import (
-    attributes_state,
-    check_attributes,
-    check_state_class,
-    env_rng_state,
-    episode_attributes,
-    restore_attributes,
-    restore_env_rng,
-    state_class,
-)
 from tasks.observables import PROPRIOCEPTION, Proprioception
 from tasks.simulation import (
     checked_action,
@@ -48,6 +38,16 @@ from tasks.simulation import (
     forward_without_actuation,
     physics_state,
     restore_physics,
+)
+from tasks.state.env_state import (
+    attributes_state,
+    check_attributes,
+    check_state_class,
+    env_rng_state,
+    episode_attributes,
+    restore_attributes,
+    restore_env_rng,
+    state_class,
 )
 from tasks.walker import CONTROL_TIMESTEP, DOWNSTREAM_FLOOR_SIZE, WalkerModel, build_walker
 
@@ -171,7 +171,7 @@ class WalkerTaskEnv(gym.Env):
     # Snapshots ------------------------------------------------------------------------
 
     def get_state(self) -> dict[str, Any]:
-        """The task's complete state as plain data (see :mod:`tasks.env_state`).
+        """The task's complete state as plain data (see :mod:`tasks.state.env_state`).
 
         Returns:
             ``{"class", "physics", "rng", "episode"}``: the class name; MuJoCo's state
@@ -192,7 +192,7 @@ class WalkerTaskEnv(gym.Env):
         the snapshot was taken of.
 
         Raises:
-            tasks.env_state.EnvStateError: The snapshot is of another class or its variables do not fit.
+            tasks.state.env_state.EnvStateError: The snapshot is of another class or its variables do not fit.
         """
         check_state_class(self, state)
         names = episode_attributes(type(self))

@@ -25,36 +25,26 @@ Episode semantics (dm_control's):
   reward and length, and the tracking metrics of :mod:`tasks.tracking.metrics`
   (success, position, velocity and acceleration errors in millimetres).
 
+Its settings are :class:`tasks.tracking.config.TrackingConfig` (also importable from here);
+where an episode starts (the snippets' references, their possible starts, the draw) is
+:mod:`tasks.tracking.starts`.
+
 :meth:`ClipTrackingEnv.get_state` and :meth:`ClipTrackingEnv.set_state` snapshot and restore
 the whole environment (physics, ``np_random``, the episode in progress) as plain data; a
-restored environment continues bit for bit (:mod:`tasks.env_state`).
+restored environment continues bit for bit (:mod:`tasks.state.env_state`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import gymnasium as gym
 import mujoco
 import numpy as np
 
-from tasks.clips.format import ClipFileError, open_clip_file, read_clip_from
-from tasks.clips.snippets import SnippetId, parse_snippet_id
+from tasks.clips.snippets import parse_snippet_id
 from tasks.clips.sources import resolve_clip_file
-from tasks.env_state import (
-    EnvStateError,
-    attributes_state,
-    check_attributes,
-    check_same,
-    check_state_class,
-    env_rng_state,
-    episode_attributes,
-    restore_attributes,
-    restore_env_rng,
-    state_class,
-)
 from tasks.geometry import quat_diff, quat_to_axisangle
 from tasks.observables import (
     ALL_PROPRIOCEPTION,
@@ -72,58 +62,27 @@ from tasks.simulation import (
     physics_state,
     restore_physics,
 )
-from tasks.tracking.metrics import FAILURE_DISTANCE, TERMINATIONS, EpisodeTrackingErrors
+from tasks.state.env_state import (
+    EnvStateError,
+    attributes_state,
+    check_attributes,
+    check_same,
+    check_state_class,
+    env_rng_state,
+    episode_attributes,
+    restore_attributes,
+    restore_env_rng,
+    state_class,
+)
+from tasks.tracking.config import TrackingConfig, check_tracking_config
+from tasks.tracking.metrics import FAILURE_DISTANCE, EpisodeTrackingErrors
 from tasks.tracking.reference import SnippetReference, WalkerState
 from tasks.tracking.rewards import comic_reward, termination_error
+from tasks.tracking.starts import choose_start, load_references, possible_starts
 from tasks.walker import CONTROL_TIMESTEP, WalkerModel, build_walker
 
 INITIAL_ERROR_LIMIT = 1e-2
 """A reference frame must reproduce itself on the walker to this error (dm_control's check)."""
-
-
-@dataclass(frozen=True)
-class TrackingConfig:
-    """Configuration of :class:`ClipTrackingEnv` (defaults: the paper's multi-clip setting).
-
-    Attributes:
-        snippets: Snippet ids (``CLIP-START-END``) or clip ids to track; one is
-            chosen per episode, weighted by its number of possible starts.
-        clips: Clip file; None picks the CMU file for ``CMU_*`` ids and the
-            synthetic library otherwise (see :mod:`tasks.clips.sources`).
-        ref_steps: Look-ahead of the reference observables: ``(1, 2, 3, 4, 5)``
-            for the multi-clip policy, ``(0,)`` for snippet experts.
-        observables: Observable set name (``full``, ``expert``, ``encoder``,
-            ``decoder``, ``gpt``) or explicit ``walker/...`` keys.
-        init: ``"random"`` (reference-state initialisation) or ``"start"``.
-        min_steps: Random starts leave at least ``min_steps + 1`` frames (plus
-            the look-ahead) before the snippet's end; 9 excludes the last 10
-            frames (training), 29 the last 30 (the paper's evaluation).
-        termination_threshold: Tracking error that ends an episode (and scales the reward's
-            termination term).
-        termination: What ends an episode early: ``"error"`` (MoCapAct's: the tracking error
-            above ``termination_threshold``) or ``"distance"`` (PHC's: the tracked bodies' mean
-            distance from the reference above 0.5 m); see :mod:`tasks.tracking.metrics`.
-        action_noise: Standard deviation of Gaussian noise added to actions
-            (MoCapAct's experts: 0.1); noisy actions are clipped to [-1, 1].
-        snippet_weights: Optional per-snippet weights (default 1 each).
-        residual_actions: Interpret actions as offsets from the reference's
-            next pose: the humanoid receives ``clip(action + pose_to_actuation(
-            reference joints at t+1), -1, 1)``. A zero action then plays the
-            reference back. ``info["action"]`` always holds the absolute action
-            the humanoid received.
-    """
-
-    snippets: tuple[str, ...] = ("SYN_walk_slow",)
-    clips: str | None = None
-    ref_steps: tuple[int, ...] = (1, 2, 3, 4, 5)
-    observables: str | tuple[str, ...] = "full"
-    init: str = "random"
-    min_steps: int = 9
-    termination_threshold: float = 0.3
-    termination: str = "error"
-    action_noise: float = 0.0
-    snippet_weights: tuple[float, ...] | None = field(default=None)
-    residual_actions: bool = False
 
 
 class ClipMismatchError(ValueError):
@@ -156,16 +115,7 @@ class ClipTrackingEnv(gym.Env):
 
     def __init__(self, config: TrackingConfig | None = None, walker: WalkerModel | None = None) -> None:
         self.config = config = config or TrackingConfig()
-        if config.init not in ("random", "start"):
-            raise ValueError(f"init must be 'random' or 'start', got {config.init!r}")
-        if not config.ref_steps or min(config.ref_steps) < 0:
-            raise ValueError(f"ref_steps must be non-negative offsets, got {config.ref_steps}")
-        if config.termination_threshold <= 0:
-            raise ValueError("termination_threshold must be positive")
-        if config.termination not in TERMINATIONS:
-            raise ValueError(f"termination must be one of {TERMINATIONS}, got {config.termination!r}")
-        if config.action_noise < 0:
-            raise ValueError("action_noise must be >= 0")
+        check_tracking_config(config)
         self.walker = walker or build_walker()
         self._model = self.walker.model
         self._data = self.walker.new_data()
@@ -187,8 +137,8 @@ class ClipTrackingEnv(gym.Env):
         if not self.snippets:
             raise ValueError("give at least one snippet or clip id to track")
         self.clip_file = resolve_clip_file(config.clips, [s.clip_id for s in self.snippets])
-        self._references = self._load_references(self.snippets)
-        self._starts, self._start_weights = self._possible_starts(config)
+        self._references = load_references(self.clip_file, self.snippets, self.walker, self._ref_steps)
+        self._starts, self._start_weights = possible_starts(self._references, config, self._ref_steps)
 
         self._episode_active = False
         self._reference: SnippetReference = self._references[0]
@@ -203,61 +153,6 @@ class ClipTrackingEnv(gym.Env):
         self._tracking = EpisodeTrackingErrors(np.zeros((1, 3)))
         self._body_distance = 0.0
 
-    # Setup -------------------------------------------------------------------
-
-    def _load_references(self, snippets: list[SnippetId]) -> list[SnippetReference]:
-        references = []
-        with open_clip_file(self.clip_file) as f:
-            clips = {}
-            for snippet in snippets:
-                if snippet.clip_id not in clips:
-                    clips[snippet.clip_id] = read_clip_from(f, snippet.clip_id)
-                clip = clips[snippet.clip_id]
-                if abs(clip.dt - CONTROL_TIMESTEP) > 1e-9:
-                    raise ClipFileError(
-                        f"clip {clip.clip_id} has dt={clip.dt}; the walker's control step is {CONTROL_TIMESTEP}"
-                    )
-                reference = SnippetReference(snippet, clip, self.walker, self._ref_steps)
-                if reference.last_step < 1:
-                    raise ValueError(
-                        f"snippet {snippet} has {reference.num_frames} frames; tracking with "
-                        f"ref_steps up to {self._ref_steps.max()} needs at least {self._ref_steps.max() + 2}"
-                    )
-                references.append(reference)
-        return references
-
-    def _possible_starts(self, config: TrackingConfig) -> tuple[list[tuple[int, int]], np.ndarray]:
-        """``(snippet index, number of possible starts)`` per snippet, and the snippets' probabilities.
-
-        As in dm_control, every possible start carries its snippet's weight.
-        """
-        weights = config.snippet_weights or (1.0,) * len(self.snippets)
-        if len(weights) != len(self.snippets) or min(weights) < 0:
-            raise ValueError("snippet_weights needs one non-negative weight per snippet")
-        ranges, mass = [], []
-        for index, (reference, weight) in enumerate(zip(self._references, weights, strict=True)):
-            if config.init == "start":
-                count = 1
-            else:
-                end = (
-                    reference.first_frame + reference.num_frames
-                    if reference.snippet.end is None
-                    else reference.snippet.end
-                )
-                count = end - int(self._ref_steps.max()) - config.min_steps - reference.first_frame
-                if count < 1:
-                    raise ValueError(
-                        f"snippet {reference.snippet} is too short for random starts with ref_steps up to "
-                        f"{self._ref_steps.max()} and min_steps {config.min_steps}: it needs more than "
-                        f"{self._ref_steps.max() + config.min_steps} frames after its start"
-                    )
-            ranges.append((index, count))
-            mass.append(count * weight)
-        total = float(sum(mass))
-        if total <= 0:
-            raise ValueError("all snippet weights are zero")
-        return ranges, np.asarray(mass) / total
-
     # Gymnasium API -------------------------------------------------------------
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -269,7 +164,15 @@ class ClipTrackingEnv(gym.Env):
                 clip}`` to choose the start instead of sampling it.
         """
         super().reset(seed=seed)
-        index, time_step = self._choose_start(options or {})
+        index, time_step = choose_start(
+            options or {},
+            self.snippets,
+            self._references,
+            self._starts,
+            self._start_weights,
+            self.config.init,
+            self.np_random,
+        )
         reference = self._references[index]
         model, data = self._model, self._data
         mujoco.mj_resetData(model, data)
@@ -296,38 +199,6 @@ class ClipTrackingEnv(gym.Env):
         self._start_time_in_clip = reference.time_in_clip(time_step, 0.0)
         info = {"snippet": str(reference.snippet), "start_step": reference.first_frame + time_step}
         return self._observation(), info
-
-    def _choose_start(self, options: dict) -> tuple[int, int]:
-        unknown = set(options) - {"snippet", "start_step"}
-        if unknown:
-            raise ValueError(f"unknown reset options {sorted(unknown)}; valid: 'snippet', 'start_step'")
-        if "snippet" in options:
-            index = self._snippet_index_of(options["snippet"])
-        else:
-            index = int(self.np_random.choice(len(self._starts), p=self._start_weights))
-        reference = self._references[index]
-        if "start_step" in options:
-            time_step = int(options["start_step"]) - reference.first_frame
-            if not 0 <= time_step < reference.last_step:
-                raise ValueError(
-                    f"start_step {options['start_step']} is outside snippet {reference.snippet} "
-                    f"(frames {reference.first_frame}..{reference.first_frame + reference.last_step - 1} can start)"
-                )
-        elif self.config.init == "start":
-            time_step = 0
-        else:
-            time_step = int(self.np_random.integers(self._starts[index][1]))
-        return index, time_step
-
-    def _snippet_index_of(self, snippet: int | str) -> int:
-        if isinstance(snippet, (int, np.integer)):
-            if not 0 <= snippet < len(self.snippets):
-                raise ValueError(f"snippet index {snippet} out of range (have {len(self.snippets)})")
-            return int(snippet)
-        wanted = parse_snippet_id(str(snippet))
-        if wanted not in self.snippets:
-            raise ValueError(f"snippet {snippet} is not tracked by this env: {', '.join(map(str, self.snippets))}")
-        return self.snippets.index(wanted)
 
     def step(self, action):
         """Applies joint position targets for one 0.03 s control step."""
@@ -432,7 +303,7 @@ class ClipTrackingEnv(gym.Env):
     # Snapshots -------------------------------------------------------------------
 
     def get_state(self) -> dict[str, Any]:
-        """The environment's complete state as plain data (see :mod:`tasks.env_state`).
+        """The environment's complete state as plain data (see :mod:`tasks.state.env_state`).
 
         Returns:
             ``{"class", "snippets", "physics", "rng", "episode", "walker", "tracking"}``: the class
@@ -464,7 +335,7 @@ class ClipTrackingEnv(gym.Env):
         and infos to those of the environment the snapshot was taken of.
 
         Raises:
-            tasks.env_state.EnvStateError: The snapshot is of another class or other snippets,
+            tasks.state.env_state.EnvStateError: The snapshot is of another class or other snippets,
                 or its variables do not fit.
         """
         check_state_class(self, state)

@@ -12,7 +12,7 @@ import os
 import numpy as np
 
 from tasks.clips.format import list_clips
-from tasks.tracking.env import TrackingConfig
+from tasks.tracking.config import TrackingConfig
 from tasks.walker import PHYSICS_TIMESTEP
 
 

@@ -21,6 +21,7 @@ import pytest
 from distill import trainer as trainer_module
 from distill.experts import training as expert_training
 from distill.experts.files import expert_dir_for
+from distill.experts.run import ExpertRun
 from distill.gpt.model import GptConfig
 from distill.gpt.training import default_gpt_sampler, train_gpt
 from distill.npmp.model import NpmpConfig
@@ -84,7 +85,7 @@ def test_an_expert_stopped_mid_rollout_resumes_to_the_uninterrupted_runs_weights
         tiny, total_steps=768, steps_per_update=Schedule.constant(256), eval_episodes=Schedule.constant(2)
     )
     out = tmp_path / "experts"  # both runs write there: the files name it
-    evaluate, moved = expert_training.ExpertRun.evaluate, []
+    evaluate, moved = ExpertRun.evaluate, []
 
     def watched(self, model, steps):  # an evaluation must not move training's random generators
         before = to_storable(random_state())
@@ -93,7 +94,7 @@ def test_an_expert_stopped_mid_rollout_resumes_to_the_uninterrupted_runs_weights
         return keep
 
     with monkeypatch.context() as patched:
-        patched.setattr(expert_training.ExpertRun, "evaluate", watched)
+        patched.setattr(ExpertRun, "evaluate", watched)
         expert_training.train_expert(snippet, out, config, progress=False)
     assert moved == [False, False, False]  # steps 0, 512, 768
     out.rename(tmp_path / "whole")

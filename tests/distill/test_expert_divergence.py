@@ -12,7 +12,8 @@ import torch
 from stable_baselines3 import PPO
 
 from distill.experts.files import expert_dir_for
-from distill.experts.training import ExpertRun, train_expert
+from distill.experts.run import ExpertRun
+from distill.experts.training import train_expert
 from foundation.divergence import TrainingDiverged
 from foundation.run_lock import LOCK_NAME
 from foundation.sb3 import non_finite_state

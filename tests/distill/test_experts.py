@@ -14,16 +14,13 @@ from stable_baselines3 import PPO
 from distill.experts.callbacks import RunState, keep_training
 from distill.experts.config import PROFILES, ExpertConfig, expert_profile
 from distill.experts.config_versions import RemovedSettingError, read_expert_settings
+from distill.experts.environments import training_envs
 from distill.experts.evaluation import EvaluationResult, training_task
 from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
 from distill.experts.loading import load_expert
-from distill.experts.training import (
-    ConfigMismatchError,
-    ExpertRun,
-    _resume_or_build,
-    train_expert,
-    training_envs,
-)
+from distill.experts.resume import resume_or_build
+from distill.experts.run import ExpertRun
+from distill.experts.training import ConfigMismatchError, train_expert
 from foundation.config_files import config_from_dict, config_to_dict, config_to_toml, with_settings
 from foundation.ppo import PpoConfig
 from foundation.sb3 import StepSize
@@ -307,7 +304,7 @@ def test_a_run_started_from_another_continues_its_checkpoint_with_its_own_settin
     source_weights = PPO.load(source.checkpoint.model, device="cpu").policy.state_dict()
     started = with_settings(config, {"gamma": 0.99, "action_std": "0.2", "start_from": str(tmp_path / "source")})
     vec_env = training_envs(training_task((snippet,), str(clip_library), started), started)
-    model, _, continued, _ = _resume_or_build(ExpertDir(tmp_path / "new" / snippet), vec_env, None, started)
+    model, _, continued, _ = resume_or_build(ExpertDir(tmp_path / "new" / snippet), vec_env, None, started)
     assert continued and model.num_timesteps == 512 and model.gamma == 0.99
     assert model.get_vec_normalize_env().gamma == 0.99
     for name, value in source_weights.items():  # the other run's networks, only the fixed noise is this run's
@@ -479,7 +476,7 @@ def test_the_final_evaluation_scores_the_kept_expert_with_its_own_seed(
     clip_library, tmp_path, monkeypatch, snippet, tiny
 ):
     from distill.experts.evaluation import EvaluationConfig, evaluate_policy
-    from distill.experts.training import FINAL_EVALUATION_SEED_OFFSET
+    from distill.experts.run import FINAL_EVALUATION_SEED_OFFSET
 
     config = dataclasses.replace(tiny, total_steps=1536)
     expert = _interrupted_run(tmp_path, snippet, config, monkeypatch)

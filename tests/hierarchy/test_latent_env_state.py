@@ -12,7 +12,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 import tasks
 from foundation.snapshots import from_storable, to_storable
 from hierarchy import LatentActionEnv, LatentActionVecEnv
-from tasks.env_state import StateWrapper, get_env_state, set_env_state
+from tasks.state.env_state import StateWrapper, get_env_state, set_env_state
 from tests.env_replay import assert_identical, episode_ends, replay
 
 from .test_decoder import small_decoder

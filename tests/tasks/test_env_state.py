@@ -15,8 +15,8 @@ from stable_baselines3.common.monitor import Monitor
 import tasks
 from foundation.snapshots import from_storable, plain_copy, to_storable
 from tasks.downstream.motion_completion import MotionCompletionConfig, MotionCompletionEnv
-from tasks.env_state import EnvStateError, StateWrapper, get_env_state, set_env_state
 from tasks.simulation import PHYSICS_STATE, control_step, physics_state, restore_physics
+from tasks.state.env_state import EnvStateError, StateWrapper, get_env_state, set_env_state
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig
 from tests.env_replay import assert_identical, episode_ends, replay
 

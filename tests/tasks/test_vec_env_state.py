@@ -1,4 +1,4 @@
-"""Snapshots of vectorised environments (tasks.vec_env_state): the whole chain restored, the next steps bit for bit."""
+"""Snapshots of vectorised environments (tasks.state.vec_env_state): the whole chain restored, bit for bit."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv,
 
 import tasks
 from foundation.snapshots import from_storable, to_storable
-from tasks.env_state import EnvStateError, StateWrapper
-from tasks.vec_env_state import get_vec_env_state, set_vec_env_state
+from tasks.state.env_state import EnvStateError, StateWrapper
+from tasks.state.vec_env_state import get_vec_env_state, set_vec_env_state
 from tests.env_replay import assert_identical
 
 TASK = {"max_steps": 12}

@@ -262,7 +262,7 @@ def get_env_state(env: gym.Env) -> dict[str, Any]:
         if handlers is None or not isinstance(layer, gym.Wrapper):
             raise EnvStateError(
                 f"cannot snapshot {state_class(layer)}: it is no wrapper whose state is known and has no "
-                "get_state()/set_state() (see tasks.env_state)"
+                "get_state()/set_state() (see tasks.state.env_state)"
             )
         layers.append({"layer": state_class(layer), "state": handlers[0](layer)})
         layer = layer.env
@@ -319,7 +319,7 @@ class StateWrapper(gym.Wrapper):
         """``{"state": get_state()}``, or ``{"problem": message}`` where the chain cannot be snapshotted.
 
         For ``env_method`` in a ``SubprocVecEnv``: an error raised in a worker ends the worker, a
-        problem returned does not (:mod:`tasks.vec_env_state` calls these two).
+        problem returned does not (:mod:`tasks.state.vec_env_state` calls these two).
         """
         try:
             return {"state": self.get_state()}

@@ -6,17 +6,17 @@
 and options their next ``reset`` would use. :func:`set_vec_env_state` puts such a state into a chain
 made the same way; the next steps then give what the snapshotted chain's would have.
 
-Each environment's snapshot is its outermost layer's ``get_state()`` (see :mod:`tasks.env_state`):
+Each environment's snapshot is its outermost layer's ``get_state()`` (see :mod:`tasks.state.env_state`):
 
 * in a ``DummyVecEnv``, called directly; an environment whose outermost layer has none (a
   ``Monitor`` around a task) is snapshotted through its wrappers with :func:`get_env_state`;
 * in a ``SubprocVecEnv``, through ``env_method``: the outermost layer of every environment must be
-  a :class:`tasks.env_state.StateWrapper` (``make_vec_env(..., wrapper_class=StateWrapper)``), whose
+  a :class:`tasks.state.env_state.StateWrapper` (``make_vec_env(..., wrapper_class=StateWrapper)``), whose
   calls return a problem instead of raising it in the worker.
 
 With a :class:`StateWrapper` outermost, both give the same snapshot, so a run snapshotted in one
 kind of ``VecEnv`` continues in the other. A layer or environment that cannot be snapshotted is
-refused (:class:`tasks.env_state.EnvStateError`), never skipped.
+refused (:class:`tasks.state.env_state.EnvStateError`), never skipped.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecEnv,
 
 from foundation.sb3_resume import EnvSnapshots, normaliser_state, restore_normaliser
 from foundation.snapshots import plain_copy
-from tasks.env_state import EnvStateError, StateWrapper, check_same, get_env_state, set_env_state, state_class
+from tasks.state.env_state import EnvStateError, StateWrapper, check_same, get_env_state, set_env_state, state_class
 
 
 def get_vec_env_state(venv: VecEnv) -> dict[str, Any]:
@@ -138,7 +138,7 @@ def _check_state_wrappers(base: SubprocVecEnv) -> None:
         names = sorted({getattr(cls, "__name__", str(cls)) for cls in outermost})
         raise EnvStateError(
             f"cannot snapshot environments in worker processes whose outermost layer is {', '.join(names)}: wrap "
-            "each in tasks.env_state.StateWrapper (make_vec_env(..., wrapper_class=StateWrapper))"
+            "each in tasks.state.env_state.StateWrapper (make_vec_env(..., wrapper_class=StateWrapper))"
         )
 
 
