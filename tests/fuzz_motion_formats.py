@@ -88,6 +88,16 @@ def keyword_cases(data: bytes, keywords: dict[bytes, bytes]) -> list[Case]:
     ]
 
 
+def text_mutations(keywords: dict[bytes, bytes]) -> Callable[[Path, np.random.Generator], list[Case]]:
+    """A target's mutations: :func:`text_cases` of its file plus the renamed ``keywords``."""
+
+    def mutations(artifact: Path, rng: np.random.Generator) -> list[Case]:
+        data = artifact.read_bytes()
+        return text_cases(data, rng) + keyword_cases(data, keywords)
+
+    return mutations
+
+
 def _judge_clips(imported: Any) -> str:
     if not imported:
         raise BadLoad("no clip imported and no error")
@@ -116,11 +126,9 @@ def amc_target() -> Target:
     """An AMC file alone (CMU's skeleton), imported to a clip."""
     from tasks.clips.importers.trajectory import MotionImportError
 
-    def mutations(artifact: Path, rng: np.random.Generator) -> list[Case]:
-        data = artifact.read_bytes()
-        return text_cases(data, rng) + keyword_cases(
-            data, {b"lfemur": b"lthigh", b"root": b"pelvis", b":DEGREES": b":GRADIANS", b"\n2\n": b"\n3\n"}
-        )
+    mutations = text_mutations(
+        {b"lfemur": b"lthigh", b"root": b"pelvis", b":DEGREES": b":GRADIANS", b"\n2\n": b"\n3\n"}
+    )
 
     return Target(
         "AMC motion (`clips import`)", _build_amc, lambda p: _import([p]), _judge_clips, (MotionImportError,), mutations
@@ -141,20 +149,17 @@ def asf_target() -> Target:
         amc = _build_amc(artifact.parent)
         return _import([artifact, amc])
 
-    def mutations(artifact: Path, rng: np.random.Generator) -> list[Case]:
-        data = artifact.read_bytes()
-        return text_cases(data, rng) + keyword_cases(
-            data,
-            {
-                b"dof rx ry rz": b"dof rx ry",
-                b"begin": b"start",
-                b"end": b"stop",
-                b":bonedata": b":bones",
-                b"length 0.45": b"length 0",
-                b"axis XYZ": b"axis QRS",
-                b"name lfemur": b"name lthigh",
-            },
-        )
+    mutations = text_mutations(
+        {
+            b"dof rx ry rz": b"dof rx ry",
+            b"begin": b"start",
+            b"end": b"stop",
+            b":bonedata": b":bones",
+            b"length 0.45": b"length 0",
+            b"axis XYZ": b"axis QRS",
+            b"name lfemur": b"name lthigh",
+        }
+    )
 
     return Target(
         "ASF skeleton (`clips import`)",
@@ -187,23 +192,20 @@ def bvh_target() -> Target:
     """A BVH of the CMU conversion, converted exactly to a clip."""
     from tasks.clips.importers.trajectory import MotionImportError
 
-    def mutations(artifact: Path, rng: np.random.Generator) -> list[Case]:
-        data = artifact.read_bytes()
-        return text_cases(data, rng) + keyword_cases(
-            data,
-            {
-                b"HIERARCHY": b"HIERARCH",
-                b"MOTION": b"MOTIONS",
-                b"Frames:": b"Frame:",
-                b"Frame Time:": b"Time:",
-                b"CHANNELS 3": b"CHANNELS 4",
-                b"Zrotation": b"Wrotation",
-                b"End Site": b"End",
-                b"{": b"(",
-                b"LeftUpLeg": b"LeftThigh",
-                b"JOINT Spine": b"JOINT Hips",
-            },
-        )
+    mutations = text_mutations(
+        {
+            b"HIERARCHY": b"HIERARCH",
+            b"MOTION": b"MOTIONS",
+            b"Frames:": b"Frame:",
+            b"Frame Time:": b"Time:",
+            b"CHANNELS 3": b"CHANNELS 4",
+            b"Zrotation": b"Wrotation",
+            b"End Site": b"End",
+            b"{": b"(",
+            b"LeftUpLeg": b"LeftThigh",
+            b"JOINT Spine": b"JOINT Hips",
+        }
+    )
 
     return Target(
         "BVH motion (`clips import`)", _build_bvh, lambda p: _import([p]), _judge_clips, (MotionImportError,), mutations
