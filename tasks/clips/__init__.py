@@ -1,8 +1,11 @@
-"""Clips: the HDF5 clip format, where clip files come from, snippet ids, the synthetic library.
+"""Clips: the HDF5 clip format, where clip files come from, snippet ids, motion import, the shipped libraries.
 
 * :mod:`tasks.clips.format`: dm_control's mocap HDF5 layout, read and written;
-* :mod:`tasks.clips.sources`: the CMU file, the cache and the synthetic library (never downloaded);
+* :mod:`tasks.clips.sources`: the CMU file, the cache, the shipped libraries by name (never downloaded);
 * :mod:`tasks.clips.snippets`: MoCapAct's ``CLIP-START-END`` ids and the snippet split;
+* :mod:`tasks.clips.kinematics`: every clip feature from the walker's positions;
+* :mod:`tasks.clips.importers`: a user's recordings (CMU ASF/AMC, BVH) onto the walker (``clips import``);
+* :mod:`tasks.clips.real`: real motion shipped as package data (``cmu-locomotion-v1``);
 * :mod:`tasks.clips.synthetic`: the built-in synthetic clips (inverse kinematics of the real walker).
 """
 
