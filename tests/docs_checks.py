@@ -165,8 +165,8 @@ def check_command_lines(files: Iterable[Path]) -> list[str]:
 def json_source(path: Path) -> Any:
     """The JSON a quoted figure comes from: a ``.json`` file, or the model card inside a decoder file."""
     if path.suffix == ".safetensors":
+        from hierarchy.cards.model_card import card_of
         from hierarchy.decoder import load_decoder
-        from hierarchy.model_card import card_of
 
         return {"card": card_of(load_decoder(path))}
     return json.loads(path.read_text())

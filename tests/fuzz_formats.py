@@ -249,7 +249,7 @@ CARD = {
 
 
 def _build_carded_decoder(folder: Path) -> Path:
-    from hierarchy.model_card import CARD_KEY, check_card
+    from hierarchy.cards.model_card import CARD_KEY, check_card
 
     decoder = _small_decoder()
     check_card(CARD)
@@ -258,7 +258,7 @@ def _build_carded_decoder(folder: Path) -> Path:
 
 
 def _card_page(path: Path) -> str:
-    from hierarchy.card_page import card_page
+    from hierarchy.cards.page import card_page
 
     return card_page(path)
 
@@ -271,8 +271,8 @@ def _judge_card(page: str) -> str:
 
 def card_target() -> Target:
     """``mocap-hierarchy decoder card``'s renderer on a decoder whose model card (JSON) is damaged."""
+    from hierarchy.cards.model_card import CARD_KEY, ModelCardError
     from hierarchy.decoder import DecoderFileError
-    from hierarchy.model_card import CARD_KEY, ModelCardError
 
     def mutations(artifact: Path, rng: np.random.Generator) -> list[Case]:
         return description_cases("", "mocap_hierarchy", _description(artifact), ("provenance", CARD_KEY))

@@ -189,11 +189,11 @@ def test_model_cards_are_rendered_from_the_shipped_files():
     from distill.experts.files import ExpertDir
     from distill.experts.shipped import shipped_experts
     from distill.gpt.shipped import shipped_gpts
-    from hierarchy.card_markdown import SECTIONS
-    from hierarchy.card_page import card_page
+    from hierarchy.cards.markdown import SECTIONS
+    from hierarchy.cards.model_card import card_of
+    from hierarchy.cards.page import card_page
     from hierarchy.decoder import load_decoder
     from hierarchy.latent_prior import shipped_priors
-    from hierarchy.model_card import card_of
     from hierarchy.pretrained import pretrained_decoders, shipped_task_policies
 
     pages = generated_pages.model_pages()
@@ -231,8 +231,8 @@ def test_each_shipped_task_policy_gets_a_page_and_a_row_and_none_gets_none(tmp_p
     import numpy as np
 
     import hierarchy.pretrained as pretrained
-    from hierarchy.card_page import card_page
-    from hierarchy.model_card import package_task_policy
+    from hierarchy.cards.model_card import package_task_policy
+    from hierarchy.cards.page import card_page
     from hierarchy.task_policy import TaskPolicy, TaskPolicySpec
 
     monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", tmp_path / "pretrained")

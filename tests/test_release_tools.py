@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from hierarchy.model_card import check_card
+from hierarchy.cards.model_card import check_card
 from tests.script_loading import ROOT, load_script
 
 expert_card = load_script(ROOT / "tools" / "release" / "expert_card.py", "release_expert_card")

@@ -14,7 +14,7 @@ environment (random starts, the paper's evaluation noise of 0.1). The directory 
 under a hidden temporary name beside its destination and renamed into place only once it is
 complete and within the tolerance, so a refused or interrupted packaging leaves nothing behind.
 The card's fields are not checked here (the experts never import the high-level side):
-``mocap-hierarchy expert package`` checks them with :func:`hierarchy.model_card.check_card`.
+``mocap-hierarchy expert package`` checks them with :func:`hierarchy.cards.model_card.check_card`.
 """
 
 from __future__ import annotations
@@ -46,7 +46,7 @@ from tasks.tracking.env import ClipTrackingEnv
 from tasks.walker import build_walker
 
 MODEL_CARD_KEY = "model_card"
-"""Where in the expert file's provenance the card is stored (``hierarchy.model_card.CARD_KEY``; a test keeps
+"""Where in the expert file's provenance the card is stored (``hierarchy.cards.model_card.CARD_KEY``; a test keeps
 the two equal)."""
 
 

@@ -1,7 +1,7 @@
 """Packaging a motion GPT for shipping: its model card attached, float16 weights, and what float16 changes.
 
 :func:`package_gpt` writes a GPT file with a model card under ``provenance["model_card"]``
-(:mod:`distill.gpt.card`) and, by default, its ``net.*`` weights as float16 (the normaliser stays
+(:mod:`distill.cards.gpt`) and, by default, its ``net.*`` weights as float16 (the normaliser stays
 float32; loading widens the weights to float32). Before the file takes its name it measures what
 float16 costs: the largest difference of an action between the float32 GPT and the written one,
 at every position of token windows of real rollouts (a rollout dataset, by default the one the GPT
@@ -19,13 +19,13 @@ from typing import Any
 import numpy as np
 import torch
 
+from distill.cards.gpt import check_gpt_card
 from distill.dataset import schema
 from distill.dataset.reader import RolloutDataset
-from distill.gpt.card import check_gpt_card
 from distill.gpt.config import PACKAGING_TOLERANCE, PACKAGING_WINDOWS
 from distill.gpt.model import GPT_FILE, MotionGpt, load_gpt
 from foundation.atomic import atomic_path
-from hierarchy.model_card import CARD_KEY
+from hierarchy.cards.model_card import CARD_KEY
 
 
 class GptPackagingError(ValueError):
@@ -121,7 +121,7 @@ def package_gpt(
         source: A GPT file, a folder holding ``gpt.safetensors``, or a shipped GPT's name.
         out: The file to write (``distill/gpt/pretrained/NAME.safetensors`` to ship it); a folder gets
             ``out/gpt.safetensors``.
-        card: The model card (JSON; :func:`distill.gpt.card.check_gpt_card` checks it), stored under
+        card: The model card (JSON; :func:`distill.cards.gpt.check_gpt_card` checks it), stored under
             ``provenance["model_card"]``, replacing any card there.
         float16: Store the ``net.*`` weights as float16 (else float32, which reproduces the source exactly).
         data: A rollout dataset (folder, file or files) whose token windows the two are compared on; None:

@@ -1,7 +1,7 @@
 """The motion GPTs shipped with the library, and the names that load them.
 
 A shipped GPT is an ordinary GPT file (:mod:`distill.gpt.model`) with a model card in its
-description (:mod:`distill.gpt.card`), kept as package data::
+description (:mod:`distill.cards.gpt`), kept as package data::
 
     distill/gpt/pretrained/<name>.safetensors
 

@@ -9,7 +9,7 @@
 * ``decoder.safetensors``: the frozen decoder file (:mod:`hierarchy.decoder`), with a model card in its
   provenance (:func:`decoder_card`: the data, the budget and the command; no wall time, so a card depends only
   on the run's inputs);
-* ``MODEL_CARD.md``: that card as Markdown (:func:`hierarchy.card_page.card_page` of the decoder file);
+* ``MODEL_CARD.md``: that card as Markdown (:func:`hierarchy.cards.page.card_page` of the decoder file);
 * ``distill.json``: the settings and the outcome.
 
 With ``online`` settings (``distill train --online``), the student also acts in the tracking task and its
@@ -43,8 +43,8 @@ from distill.trainer import (
 )
 from foundation.config_cli import dataclass_flags
 from foundation.config_files import config_to_dict
-from hierarchy.card_markdown import CARD_FILE, layers_text
-from hierarchy.card_page import write_card
+from hierarchy.cards.markdown import CARD_FILE, layers_text
+from hierarchy.cards.page import write_card
 
 DECODER_FILE = "decoder.safetensors"
 POLICY_FILE = "policy.safetensors"
@@ -210,7 +210,7 @@ def decoder_card(
     online: OnlineDistillConfig | None = None,
     collected: dict[str, int] | None = None,
 ) -> dict[str, Any]:
-    """The model card a distillation stores in its decoder file (:mod:`hierarchy.model_card`).
+    """The model card a distillation stores in its decoder file (:mod:`hierarchy.cards.model_card`).
 
     Everything in it follows from the run's inputs (data, settings, the command), so a resumed run writes
     the same card as an uninterrupted one; the wall time is in ``distill.json`` (``seconds``, of the call

@@ -4,7 +4,7 @@
 * ``reference/configs.md``: every settings dataclass, field by field (type, default, meaning from the
   class's ``Attributes:`` docstring section);
 * ``models/<name>.md``: one model card per shipped decoder, latent prior and task policy, rendered from the file
-  by :func:`hierarchy.card_page.card_page` (what ``mocap-hierarchy decoder card`` prints), so the page, the command
+  by :func:`hierarchy.cards.page.card_page` (what ``mocap-hierarchy decoder card`` prints), so the page, the command
   and the file cannot disagree;
 * ``models/task-policies.md``: the shipped task policies, each with its card (or the note that none is shipped);
 * ``models/clips-NAME.md``: each shipped real clip library, its composition and playback figures
@@ -224,7 +224,7 @@ def configs_page() -> str:
 
 def doc_links() -> Any:
     """How a card page under ``models/`` links the site's pages (a page not in the site yet is named, not linked)."""
-    from hierarchy.card_markdown import DocLinks
+    from hierarchy.cards.markdown import DocLinks
 
     pages = frozenset(str(page.relative_to(DOCS)) for page in DOCS.rglob("*.md"))
     return DocLinks(prefix="../", pages=pages)
@@ -233,9 +233,9 @@ def doc_links() -> Any:
 def card_of_file(path: Path) -> str:
     """The card page of a shipped file: what ``mocap-hierarchy decoder card`` prints, with site links.
 
-    Both come from one renderer, :func:`hierarchy.card_page.card_page`.
+    Both come from one renderer, :func:`hierarchy.cards.page.card_page`.
     """
-    from hierarchy.card_page import card_page
+    from hierarchy.cards.page import card_page
 
     return card_page(path, doc_links())
 
@@ -246,12 +246,11 @@ def model_pages() -> dict[str, str]:
     ``NAME.md``, ``NAME-prior.md``, ``task-policy-DECODER-TASK.md``, ``expert-GROUP-SNIPPET.md`` and
     ``gpt-NAME.md`` (none of a kind that is not shipped).
     """
-    import distill.expert_card  # registers the expert card builder
-    import distill.gpt.card  # noqa: F401  (registers the GPT card builder)
+    import distill.cards  # noqa: F401  (registers the expert and GPT card builders)
     from distill.experts.files import ExpertDir
     from distill.experts.shipped import shipped_experts
     from distill.gpt.shipped import shipped_gpts
-    from hierarchy.card_markdown import card_page_name
+    from hierarchy.cards.markdown import card_page_name
     from hierarchy.latent_prior import shipped_priors
     from hierarchy.pretrained import pretrained_decoders, shipped_task_policies
 
@@ -281,7 +280,7 @@ def snippet_experts_page() -> str:
     """The shipped snippet experts: name and scores of each, linked to its card."""
     from distill.experts.loading import load_expert
     from distill.experts.shipped import shipped_experts
-    from hierarchy.card_markdown import card_page_name
+    from hierarchy.cards.markdown import card_page_name
 
     shipped = shipped_experts()
     lines = [
@@ -309,7 +308,7 @@ def snippet_experts_page() -> str:
 
 def listing_page(lines: list[str], headers: list[str], rows: list[list[str]], pages: list[str]) -> str:
     """``lines``, then the table of ``rows``, then a hidden table of contents of the card ``pages`` it links."""
-    from hierarchy.card_markdown import table
+    from hierarchy.cards.markdown import table
 
     contents = ["```{toctree}", ":maxdepth: 1", ":hidden:", "", *pages, "```"]
     return "\n".join([*lines, *table(headers, rows), "", *contents, ""])
@@ -321,8 +320,8 @@ TASK_POLICIES_PAGE = "task-policies.md"
 
 def task_policies_page() -> str:
     """The shipped task policies: name, task, decoder and summary of each, linked to its card."""
-    from hierarchy.card_markdown import card_page_name, read_file_facts
-    from hierarchy.model_card import CARD_KEY
+    from hierarchy.cards.markdown import card_page_name, read_file_facts
+    from hierarchy.cards.model_card import CARD_KEY
     from hierarchy.pretrained import shipped_task_policies
 
     shipped = shipped_task_policies()

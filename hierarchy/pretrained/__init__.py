@@ -4,7 +4,7 @@ Each ``NAME.safetensors`` in this folder is an ordinary decoder file (see
 :mod:`hierarchy.decoder`) whose description carries a model card under
 ``provenance["model_card"]``: the data, budgets, commands and scores it was
 made with (``mocap-hierarchy decoder info NAME`` prints it, ``decoder card NAME``
-renders it as a page, :mod:`hierarchy.card_page`). Nothing is downloaded: the
+renders it as a page, :mod:`hierarchy.cards.page`). Nothing is downloaded: the
 files are package data.
 
 A name is any file stem here; a path that exists always wins over a name, so a

@@ -30,7 +30,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     )
     package.add_argument("file", help=DECODER_HELP)
     package.add_argument("out", type=Path, help="decoder file to write")
-    package.add_argument("--card", type=Path, required=True, help="model card JSON (see hierarchy.model_card)")
+    package.add_argument("--card", type=Path, required=True, help="model card JSON (see hierarchy.cards.model_card)")
     package.add_argument(
         "--scores", type=Path, default=None, help="`distill eval --json` file whose scores fill the card"
     )
@@ -75,9 +75,9 @@ def add_commands(subparsers: LazySubParsers) -> None:
 
 
 def _list(args: argparse.Namespace) -> None:
+    from hierarchy.cards.model_card import card_of
     from hierarchy.decoder import load_decoder
     from hierarchy.latent_prior import shipped_priors
-    from hierarchy.model_card import card_of
     from hierarchy.pretrained import names_hint, pretrained_decoders
 
     shipped = pretrained_decoders()
@@ -102,7 +102,7 @@ def _info(args: argparse.Namespace) -> None:
 
 
 def _package(args: argparse.Namespace) -> None:
-    from hierarchy.model_card import card_with_scores, package_decoder
+    from hierarchy.cards.model_card import card_with_scores, package_decoder
 
     card = read_json_file(args.card)
     if args.scores is not None:
@@ -115,7 +115,7 @@ def _package(args: argparse.Namespace) -> None:
 
 
 def _card(args: argparse.Namespace) -> None:
-    from hierarchy.card_page import card_page, write_card
+    from hierarchy.cards.page import card_page, write_card
 
     if args.prior:
         from hierarchy.latent_prior import resolve_prior, shipped_priors

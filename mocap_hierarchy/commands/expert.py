@@ -341,9 +341,9 @@ def _export(args: argparse.Namespace) -> None:
 
 
 def _card(args: argparse.Namespace) -> None:
-    import distill.expert_card  # noqa: F401  (registers the expert card builder)
+    import distill.cards.expert  # noqa: F401  (registers the expert card builder)
     from distill.experts.files import ExpertDir
-    from hierarchy.card_page import card_page, write_card
+    from hierarchy.cards.page import card_page, write_card
 
     expert = _existing_expert(args.expert)
     source = ExpertDir(expert, args.evaluation).sidecar if expert.is_dir() else expert
@@ -377,7 +377,7 @@ def _existing_expert(given: Path) -> Path:
 
 
 def _package(args: argparse.Namespace) -> None:
-    import distill.expert_card as expert_card
+    import distill.cards.expert as expert_card
     from distill.experts.packaging import package_expert
 
     card = expert_card.check_expert_card(read_json_file(args.card), str(args.card))

@@ -198,10 +198,10 @@ def _prompts(args: argparse.Namespace) -> dict:
 
 
 def _card(args: argparse.Namespace) -> None:
-    import distill.gpt.card  # noqa: F401  (registers the GPT card builder)
+    import distill.cards.gpt  # noqa: F401  (registers the GPT card builder)
     from distill.gpt.model import GPT_FILE
     from distill.gpt.shipped import names_hint, resolve_gpt
-    from hierarchy.card_page import card_page, write_card
+    from hierarchy.cards.page import card_page, write_card
 
     source = file_in_folder(resolve_gpt(args.gpt), GPT_FILE)
     if not source.is_file():
@@ -213,7 +213,7 @@ def _card(args: argparse.Namespace) -> None:
 
 
 def _package(args: argparse.Namespace) -> None:
-    from distill.gpt.card import check_gpt_card
+    from distill.cards.gpt import check_gpt_card
     from distill.gpt.completion_report import completion_scores
     from distill.gpt.packaging import package_gpt
 

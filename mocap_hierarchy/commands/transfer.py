@@ -52,7 +52,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     package.add_argument(
         "out", type=Path, help="policy file to write (hierarchy/pretrained/policies/DECODER/TASK.safetensors ships it)"
     )
-    package.add_argument("--card", type=Path, required=True, help="model card JSON (see hierarchy.model_card)")
+    package.add_argument("--card", type=Path, required=True, help="model card JSON (see hierarchy.cards.model_card)")
     package.set_defaults(handler=_package)
     export = transfer_commands.add_parser(
         "export", help="write a task policy as one ONNX graph (observation -> action) for deployment"
@@ -154,7 +154,7 @@ def _evaluate_speed(path: Path, args: argparse.Namespace) -> None:
 
 
 def _package(args: argparse.Namespace) -> None:
-    from hierarchy.model_card import package_task_policy
+    from hierarchy.cards.model_card import package_task_policy
     from hierarchy.task_policy import load_task_policy
     from hierarchy.transfer import POLICY_FILE
 

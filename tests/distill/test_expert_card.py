@@ -7,7 +7,7 @@ import re
 from distill.experts.files import ExpertDir
 from distill.experts.policy import ExpertPolicy
 from foundation.fingerprints import file_sha256
-from hierarchy.card_markdown import CARD_FILE, SECTIONS
+from hierarchy.cards.markdown import CARD_FILE, SECTIONS
 from mocap_hierarchy.cli import main
 
 

@@ -13,12 +13,12 @@ import torch
 from safetensors import safe_open
 
 import distill.gpt.shipped as shipped
+from distill.cards.gpt import check_gpt_card
 from distill.dataset.reader import dataset_files
-from distill.gpt.card import check_gpt_card
 from distill.gpt.model import load_gpt
 from distill.gpt.packaging import GptPackagingError, package_gpt
-from hierarchy.card_markdown import SECTIONS
-from hierarchy.model_card import CARD_KEY, ModelCardError
+from hierarchy.cards.markdown import SECTIONS
+from hierarchy.cards.model_card import CARD_KEY, ModelCardError
 from mocap_hierarchy.cli import main
 from tests.distill.test_gpt import random_gpt
 

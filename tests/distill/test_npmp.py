@@ -114,8 +114,8 @@ def test_distillation_writes_its_model_card_inside_the_decoder_file_and_beside_i
     from distill.npmp.config import default_sampler as cli_sampler
     from distill.trainer import TrainerConfig as CliTrainer
     from foundation.config_cli import dataclass_from_args
-    from hierarchy.card_page import card_page
-    from hierarchy.model_card import card_of
+    from hierarchy.cards.model_card import card_of
+    from hierarchy.cards.page import card_page
     from mocap_hierarchy.cli import build_parser
 
     result, out = distilled

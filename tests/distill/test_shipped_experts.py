@@ -18,7 +18,7 @@ from distill.experts.config import EvaluationConfig
 from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
 from distill.experts.loading import load_expert
 from distill.experts.packaging import MODEL_CARD_KEY, PackagingError, package_expert
-from hierarchy.card_markdown import SECTIONS
+from hierarchy.cards.markdown import SECTIONS
 from mocap_hierarchy.cli import main
 
 GROUP = "tiny-v1"
@@ -107,7 +107,7 @@ def test_packaging_refuses_to_overwrite_its_source_or_a_folder_that_is_not_an_ex
 
 
 def test_the_card_key_is_the_model_card_key_of_every_model_file():
-    from hierarchy.model_card import CARD_KEY
+    from hierarchy.cards.model_card import CARD_KEY
 
     assert MODEL_CARD_KEY == CARD_KEY
 

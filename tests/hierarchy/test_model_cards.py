@@ -13,10 +13,11 @@ import pytest
 
 from foundation.fingerprints import file_sha256
 from hierarchy import load_decoder, load_latent_prior
-from hierarchy.card_markdown import CARD_FILE, SECTIONS, TESTED_WITH, DocLinks, scores_markdown
-from hierarchy.card_page import TASK_POLICY_FORMAT, card_page, model_card
+from hierarchy.cards.decoder import scores_markdown
+from hierarchy.cards.markdown import CARD_FILE, SECTIONS, TESTED_WITH, DocLinks
+from hierarchy.cards.model_card import ModelCardError, card_of, check_card, package_decoder
+from hierarchy.cards.page import TASK_POLICY_FORMAT, card_page, model_card
 from hierarchy.latent_prior import shipped_priors
-from hierarchy.model_card import ModelCardError, card_of, check_card, package_decoder
 from hierarchy.pretrained import pretrained_decoders
 from mocap_hierarchy.cli import main
 

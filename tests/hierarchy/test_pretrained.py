@@ -11,8 +11,8 @@ import torch
 import hierarchy.pretrained as pretrained
 import tasks
 from hierarchy import DecoderFileError, load_decoder
-from hierarchy.card_page import card_page
-from hierarchy.model_card import action_difference, card_of, package_decoder
+from hierarchy.cards.model_card import action_difference, card_of, package_decoder
+from hierarchy.cards.page import card_page
 from hierarchy.transfer import evaluate_transfer, train_transfer
 from mocap_hierarchy.cli import main
 

@@ -15,9 +15,9 @@ from safetensors.torch import load_file
 import hierarchy.pretrained as pretrained
 from foundation.fingerprints import file_sha256
 from hierarchy import load_task_policy
-from hierarchy.card_page import card_page
+from hierarchy.cards.model_card import CARD_KEY, ModelCardError, check_card, package_task_policy
+from hierarchy.cards.page import card_page
 from hierarchy.latent_prior import resolve_prior, shipped_priors
-from hierarchy.model_card import CARD_KEY, ModelCardError, check_card, package_task_policy
 from hierarchy.transfer import POLICY_FILE, load_policy_and_decoder, load_policy_prior, policy_env, train_transfer
 from hierarchy.transfer.loading import recorded_file
 from hierarchy.transfer.run_folder import is_recorded_decoder

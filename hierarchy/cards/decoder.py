@@ -1,31 +1,32 @@
-"""The model card of a decoder file (:mod:`hierarchy.decoder`): its builder for :mod:`hierarchy.card_page`.
+"""The model card of a decoder file (:mod:`hierarchy.decoder`): its builder for :mod:`hierarchy.cards.page`.
 
-The page's parts come from :mod:`hierarchy.card_markdown`; a shipped decoder's page also
+The page's parts come from :mod:`hierarchy.cards.markdown`; a shipped decoder's page also
 names its shipped latent prior, with that file's size, hash and card.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 from foundation.onnx_files import ONNX_OPSET
-from hierarchy.card_markdown import (
+from hierarchy.cards.markdown import (
     CardContext,
     CardPage,
     artifact_lines,
     bullets,
     card_page_name,
-    float16_note,
-    in_card_order,
+    float16_lines,
     interface_lines,
     layers_text,
-    opening_line,
-    provenance_lines,
+    net_weights,
     read_file_facts,
     runtime_lines,
-    scores_markdown,
     size_text,
 )
 from hierarchy.decoder import DecoderSpec, load_decoder
 from hierarchy.latent_prior import shipped_priors
+from tasks.tracking.metrics import TRACKING_METRICS
 
 
 def decoder_card(context: CardContext) -> CardPage:
@@ -37,8 +38,6 @@ def decoder_card(context: CardContext) -> CardPage:
     network = (
         f"an MLP of {layers_text(spec.hidden_layers)} ({spec.activation}{', layer norm' if spec.layer_norm else ''})"
     )
-    weights = facts.dtype_of("net.")
-    widened = " (widened to float32 on loading)" if weights != "float32" else ""
     overview = [
         card.get("summary", "A frozen low-level decoder."),
         "",
@@ -80,7 +79,7 @@ def decoder_card(context: CardContext) -> CardPage:
         "file and applied by the decoder; `decoder.flatten(observations)` puts a task's observations in this order.",
     ]
     artifacts = [
-        *artifact_lines(context, f"`net.*` {weights}{widened}, normaliser {facts.dtype_of('observation_')}"),
+        *artifact_lines(context, net_weights(facts, "observation_")),
         f"- **behaviour SHA-256** (weights, normaliser and spec, not the card: re-packaging keeps it): "
         f"`{decoder.behaviour_sha256()}`",
         f"- **latent prior**: {_companion_prior(context, decoder.behaviour_sha256())}",
@@ -94,26 +93,16 @@ def decoder_card(context: CardContext) -> CardPage:
         f"(opset {ONNX_OPSET}, normaliser and bounds inside, this interface in its metadata) for ONNX Runtime "
         f"(the `export` extra); see {links.page('deployment', 'guides/deployment.md')}.",
     ]
-    limitations = [f"- {note}" for note in card.get("notes", [])]
-    limitations += [
+    limitations = [
+        *context.notes(),
         f"- It reads exactly the {spec.observation_size} observation values above, in that order: "
         "`check_observations` refuses an environment that lacks a key or gives another size.",
         f"- It was trained for latents within ±{spec.latent_bound:g}; it does not clip `z`, and beyond the bound its "
         "actions are extrapolation.",
+        *float16_lines(facts, "decoder", "mocap-hierarchy decoder package"),
     ]
-    if weights == "float16":
-        limitations.append(float16_note("decoder", "mocap-hierarchy decoder package"))
-    sections = in_card_order(
-        overview,
-        [intended],
-        training,
-        inputs,
-        artifacts,
-        runtime,
-        limitations,
-        provenance_lines(context, "The facts the command that wrote the file recorded in it:"),
-    )
-    return CardPage(f"Decoder `{name}`", opening_line(context), sections)
+    sections = (overview, [intended], training, inputs, artifacts, runtime, limitations)
+    return context.page(f"Decoder `{name}`", sections, "The facts the command that wrote the file recorded in it:")
 
 
 def _companion_prior(context: CardContext, behaviour: str) -> str:
@@ -131,3 +120,59 @@ def _companion_prior(context: CardContext, behaviour: str) -> str:
 
 def _prior_command(context: CardContext) -> str:
     return f"mocap-hierarchy decoder card {context.shipped} --prior"
+
+
+def scores_markdown(card: Mapping[str, Any]) -> list[str]:
+    """The card's scores as Markdown lines: its protocol, a table per snippet, the multi-clip fraction.
+
+    Empty when the card holds no expert scores.
+    """
+    experts, policy = card.get("experts", {}), card.get("multi_clip", {})
+    if not experts:
+        return []
+    lines = [
+        card.get("protocol", ""),
+        "",
+        "| snippet | expert reward | expert length | multi-clip reward | multi-clip length | fraction (reward) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for snippet, row in experts.items():
+        other = policy.get("snippets", {}).get(snippet, {})
+        reward, own = other.get("normalized_reward"), row.get("normalized_reward")
+        fraction = reward / own if reward is not None and own else None
+        lines.append(
+            f"| {snippet} | {_number(own)} | {_number(row.get('normalized_length'))} | "
+            f"{_number(reward)} | {_number(other.get('normalized_length'))} | {_number(fraction)} |"
+        )
+    fraction = policy.get("fraction", {})
+    if fraction:
+        lines += [
+            "",
+            f"Multi-clip policy as a fraction of the experts (mean over {fraction.get('snippets')} snippets): "
+            f"reward **{_number(fraction.get('normalized_reward'))}**, "
+            f"length **{_number(fraction.get('normalized_length'))}**.",
+        ]
+    return [*lines, "", *_tracking_lines(policy.get("snippets", {}))]
+
+
+def _tracking_lines(snippets: Mapping[str, Any]) -> list[str]:
+    """The multi-clip policy's tracking metrics per snippet, where its evaluation measured them (since 2026-11-26)."""
+    measured = {name: row for name, row in snippets.items() if isinstance(row, Mapping) and "success" in row}
+    if not measured:
+        return []
+    lines = [
+        "The multi-clip policy's tracking metrics over the same episodes (success: the snippet's end reached; "
+        "errors of the 31 tracked bodies):",
+        "",
+        "| snippet | success | G-MPJPE (mm) | MPJPE (mm) | vel. error (mm/step) | acc. error (mm/step²) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name, row in measured.items():
+        errors = [row.get(key) for key in TRACKING_METRICS[1:]]
+        cells = " | ".join("-" if value is None else f"{value:.1f}" for value in errors)
+        lines.append(f"| {name} | {_number(row.get('success'))} | {cells} |")
+    return [*lines, ""]
+
+
+def _number(value: float | None) -> str:
+    return "-" if value is None else f"{value:.3f}"

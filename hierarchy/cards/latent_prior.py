@@ -1,6 +1,6 @@
-"""The model card of a latent prior file (:mod:`hierarchy.latent_prior`): its builder for :mod:`hierarchy.card_page`.
+"""The model card of a latent prior file (:mod:`hierarchy.latent_prior`): its builder for :mod:`hierarchy.cards.page`.
 
-The page's parts come from :mod:`hierarchy.card_markdown`; a shipped prior's page links
+The page's parts come from :mod:`hierarchy.cards.markdown`; a shipped prior's page links
 its shipped decoder and says whether that decoder's behaviour is the one it was fitted for.
 """
 
@@ -8,23 +8,20 @@ from __future__ import annotations
 
 import hierarchy.pretrained as pretrained
 from foundation.interfaces import flat_observation_port, vector_port
-from hierarchy.card_markdown import (
+from hierarchy.cards.markdown import (
     WALKER,
     CardContext,
     CardPage,
     artifact_lines,
     bullets,
     card_page_name,
-    in_card_order,
     interface_lines,
     layers_text,
-    opening_line,
-    provenance_lines,
     runtime_lines,
 )
+from hierarchy.cards.model_card import CARD_KEY, check_card
 from hierarchy.decoder import load_decoder
 from hierarchy.latent_prior import load_latent_prior
-from hierarchy.model_card import CARD_KEY, check_card
 
 
 def prior_card(context: CardContext) -> CardPage:
@@ -85,30 +82,21 @@ def prior_card(context: CardContext) -> CardPage:
         "- **Environments**: `hierarchy.LatentActionEnv(env, decoder, prior=prior)`, "
         f"`transfer train --latent-prior {decoder or 'FILE'}`.",
     ]
-    limitations = [f"- {note}" for note in card.get("notes", [])]
-    limitations += [
+    limitations = [
+        *context.notes(),
         "- It was fitted on the states of its training snippets: away from them its mean is an extrapolation.",
         "- The file holds the mean only, no spread around it.",
         "- Another decoder is refused (`check_fits` compares the behaviour SHA-256), even one of the same "
         "architecture.",
     ]
-    sections = in_card_order(
-        overview,
-        [intended],
-        training,
-        inputs,
-        artifacts,
-        runtime,
-        limitations,
-        provenance_lines(
-            context,
-            "Fitted with `mocap-hierarchy decoder fit-prior` (its settings and outcome are under Training).",
-            PRIOR_TRAINING_FACTS,
-            context.card.get("commands") or _fit_commands(decoder),
-        ),
-    )
     title = f"Latent prior of `{decoder}`" if decoder else f"Latent prior `{context.display}`"
-    return CardPage(title, opening_line(context), sections)
+    return context.page(
+        title,
+        (overview, [intended], training, inputs, artifacts, runtime, limitations),
+        "Fitted with `mocap-hierarchy decoder fit-prior` (its settings and outcome are under Training).",
+        PRIOR_TRAINING_FACTS,
+        card.get("commands") or _fit_commands(decoder),
+    )
 
 
 PRIOR_TRAINING_FACTS = ("snippets", "samples", "fit", "config")

@@ -1,16 +1,16 @@
 """The model card of a snippet expert's ``expert.safetensors``, in the eight sections every card has.
 
 It lives beside :mod:`distill.experts`, not in it: the experts never need the high-level side, and the card
-renderer is part of it (:mod:`hierarchy.card_page`).
+renderer is part of it (:mod:`hierarchy.cards.page`).
 
 Built from the file alone (its :class:`~distill.experts.policy.ExpertSpec` and provenance, and a model card
 JSON under ``provenance["model_card"]`` where one was attached, by ``mocap-hierarchy expert package``) by the
-renderer of :mod:`hierarchy.card_page`; importing this module registers the builder, so
-:func:`hierarchy.card_page.card_page` then renders expert files too. ``mocap-hierarchy expert card`` prints it.
+renderer of :mod:`hierarchy.cards.page`; importing this module registers the builder, so
+:func:`hierarchy.cards.page.card_page` then renders expert files too. ``mocap-hierarchy expert card`` prints it.
 A shipped expert's page is titled with its name (``synthetic-v3/SYN_walk_slow-0-182``), which loads it.
 
 An expert's card holds the model card fields that apply to one expert (``summary``, ``intended_use``,
-``budgets``, ``commands``, ``notes``; :mod:`hierarchy.model_card`) and ``scores``: the expert's own
+``budgets``, ``commands``, ``notes``; :mod:`hierarchy.cards.model_card`) and ``scores``: the expert's own
 evaluation as one flat mapping, its ``protocol`` and numbers: ``{"protocol": "...", "normalized_reward": 0.7,
 "normalized_length": 0.98, "episodes": 1000, "success": 0.8, "global_position_error_mm": 85.7, ...}`` (the
 tracking metrics under their names in :data:`tasks.tracking.metrics.TRACKING_METRICS`;
@@ -20,31 +20,28 @@ tracking metrics under their names in :data:`tasks.tracking.metrics.TRACKING_MET
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import replace
-from pathlib import Path
 from typing import Any
 
 import distill.experts.shipped as shipped
 from distill.experts.files import EXPERT_FORMAT
 from foundation.interfaces import flat_observation_port, vector_port
-from hierarchy.card_markdown import (
+from hierarchy.cards.markdown import (
     WALKER,
     CardContext,
     CardPage,
     artifact_lines,
+    budgets_and_scores,
     bullets,
-    float16_note,
-    in_card_order,
+    float16_lines,
     interface_lines,
     layers_text,
-    opening_line,
-    provenance_lines,
+    net_weights,
     runtime_lines,
-    table,
-    text,
+    scores_table,
+    written_by,
 )
-from hierarchy.card_page import register_card_builder
-from hierarchy.model_card import check_card
+from hierarchy.cards.model_card import check_card
+from hierarchy.cards.page import register_card_builder
 from tasks.tracking.metrics import METRIC_LABELS
 
 EXPERT_TRAINING_FACTS = ("trained_steps", "clips")
@@ -66,12 +63,7 @@ def check_expert_card(card: Any, where: str = "") -> dict[str, Any]:
 
 def scores_lines(scores: Mapping[str, Any]) -> list[str]:
     """An expert card's ``scores`` as Markdown: its protocol, then a table of score and value (empty: none)."""
-    rows = [[_score_label(key), "-" if value is None else text(value)] for key, value in scores.items()]
-    rows = [row for row, key in zip(rows, scores, strict=True) if key != "protocol"]
-    if not rows:
-        return []
-    protocol = [str(scores["protocol"]), ""] if scores.get("protocol") else []
-    return [*protocol, *table(["score", "value"], rows)]
+    return scores_table(scores, "score", _score_label)
 
 
 def _score_label(key: str) -> str:
@@ -81,15 +73,8 @@ def _score_label(key: str) -> str:
 def _shipped(context: CardContext) -> CardContext:
     """``context`` naming a shipped expert by its name (display, source, command); others unchanged."""
     root = context.facts.path.parent.parent.parent  # <root>/eval_rsi/model/expert.safetensors
-    name = shipped.shipped_name(root)
-    if name is None:
-        return context
-    display = Path("distill/experts/pretrained") / context.facts.path.resolve().relative_to(
-        shipped.SHIPPED_EXPERTS_FOLDER.resolve()
-    )
-    return replace(
-        context, shipped=name, display=display.as_posix(), source=name, command=f"mocap-hierarchy expert card {name}"
-    )
+    folder = shipped.SHIPPED_EXPERTS_FOLDER
+    return context.shipped_as(shipped.shipped_name(root), folder, "distill/experts/pretrained", EXPERT_CARD_COMMAND)
 
 
 def expert_card(context: CardContext) -> CardPage:
@@ -124,20 +109,12 @@ def expert_card(context: CardContext) -> CardPage:
     provenance = context.provenance
     training = bullets({"snippet": snippet, "discount": description.get("gamma"), "GAE": description.get("gae_lambda")})
     training += bullets({key: provenance[key] for key in EXPERT_TRAINING_FACTS if key in provenance})
-    if card.get("budgets"):
-        training += ["", "### Budgets", "", *bullets(card["budgets"])]
-    training += [
-        "",
-        "### Scores",
-        "",
-        *(
-            scores_lines(card.get("scores", {}))
-            or [
-                "No scores are recorded in this file (`mocap-hierarchy expert eval --json` measures them; the "
-                "`scores` of the card given to `mocap-hierarchy expert package` records them)."
-            ]
-        ),
-    ]
+    training += budgets_and_scores(
+        card,
+        scores_lines(card.get("scores", {})),
+        "No scores are recorded in this file (`mocap-hierarchy expert eval --json` measures them; the `scores` of "
+        "the card given to `mocap-hierarchy expert package` records them).",
+    )
     interface = {
         "inputs": [flat_observation_port(sizes)],
         "outputs": [vector_port("action", action_size, low=-1.0, high=1.0)],
@@ -154,37 +131,27 @@ def expert_card(context: CardContext) -> CardPage:
             "The action is an offset: the humanoid receives `clip(action + pose_to_actuation(reference joints at "
             "t+1), -1, 1)` (`TrackingConfig.residual_actions`).",
         ]
-    weights = facts.dtype_of("net.")
-    widened = " (widened to float32 on loading)" if weights != "float32" else ""
-    artifacts = artifact_lines(context, f"`net.*` {weights}{widened}, normaliser {facts.dtype_of('obs_')}")
+    artifacts = artifact_lines(context, net_weights(facts, "obs_"))
     artifacts.append(f"- the file format: {links.page('the expert directory', 'reference/formats/expert.md')}")
     runtime = runtime_lines("`distill.experts.loading.load_expert`", WALKER, light=False)
     runtime.append(
         f"- **ONNX**: `mocap-hierarchy expert export {context.shipped or 'EXPERT'} --onnx OUT.onnx` writes its mean "
         f"action as one graph; see {links.page('deployment', 'guides/deployment.md')}."
     )
-    limitations = [f"- {note}" for note in card.get("notes", [])]
-    limitations += [
+    limitations = [
+        *context.notes(),
         f"- It tracks `{snippet}` only, from the states its training visited (random starts of the snippet).",
         "- Its training kept the evaluation with the best normalised reward over random starts, which weights short "
         f"episodes: whole-snippet tracking from the first frame may be worse (see "
         f"{links.page('tracking metrics', 'guides/tracking-metrics.md')}).",
+        *float16_lines(facts, "expert", "mocap-hierarchy expert package"),
     ]
-    if weights == "float16":
-        limitations.append(float16_note("expert", "mocap-hierarchy expert package"))
-    made_by = "Written by `mocap-hierarchy expert train`"
-    made_by += ", packaged with `mocap-hierarchy expert package`." if card else "."
-    sections = in_card_order(
-        overview,
-        [intended],
-        training,
-        inputs,
-        artifacts,
-        runtime,
-        limitations,
-        provenance_lines(context, made_by, EXPERT_TRAINING_FACTS),
-    )
-    return CardPage(f"Snippet expert `{context.shipped or snippet}`", opening_line(context), sections)
+    sections = (overview, [intended], training, inputs, artifacts, runtime, limitations)
+    title = f"Snippet expert `{context.shipped or snippet}`"
+    return context.page(title, sections, written_by("expert", card), EXPERT_TRAINING_FACTS)
 
 
-register_card_builder(EXPERT_FORMAT, expert_card, command="mocap-hierarchy expert card")
+EXPERT_CARD_COMMAND = "mocap-hierarchy expert card"
+"""The command that prints an expert's card."""
+
+register_card_builder(EXPERT_FORMAT, expert_card, command=EXPERT_CARD_COMMAND)

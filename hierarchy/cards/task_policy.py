@@ -1,4 +1,4 @@
-"""The model card of a task policy file (:mod:`hierarchy.task_policy`): its builder for :mod:`hierarchy.card_page`.
+"""The model card of a task policy file (:mod:`hierarchy.task_policy`): its builder for :mod:`hierarchy.cards.page`.
 
 Built from the file's JSON description and model card alone, so rendering a card loads
 no simulator: the format's name and the fields the card reads, with their types, are
@@ -14,25 +14,22 @@ import hierarchy.pretrained as pretrained
 from foundation.interfaces import flat_observation_port, vector_port
 from foundation.json_fields import typed_value
 from foundation.onnx_files import ONNX_OPSET
-from hierarchy.card_markdown import (
+from hierarchy.cards.markdown import (
     WALKER,
     CardContext,
     CardPage,
     DocLinks,
     artifact_lines,
+    budgets_and_scores,
     bullets,
     card_page_name,
-    in_card_order,
     interface_lines,
     layers_text,
-    opening_line,
-    provenance_lines,
     runtime_lines,
-    table,
-    text,
+    scores_table,
 )
+from hierarchy.cards.model_card import ModelCardError
 from hierarchy.latent_prior import shipped_priors
-from hierarchy.model_card import ModelCardError
 
 TASK_POLICY_FORMAT = "mocap_hierarchy.task_policy"
 """``hierarchy.task_policy.TASK_POLICY_FORMAT``, named here so rendering a card loads no simulator (a test keeps
@@ -85,9 +82,10 @@ def task_policy_card(context: CardContext) -> CardPage:
     overrides = description.get("task_overrides", {})
     training = bullets({"task": task, "task settings changed": overrides or "none"})
     training += bullets({k: provenance[k] for k in TASK_POLICY_TRAINING_FACTS if k in provenance})
-    if card.get("budgets"):
-        training += ["", "### Budgets", "", *bullets(card["budgets"])]
-    training += ["", "### Scores", "", *(_policy_scores(card) or [_no_scores(context)])]
+    scores = card.get("scores", {})
+    training += budgets_and_scores(
+        card, scores_table(scores, "measure", "`{}`".format, card.get("protocol")), _no_scores(context)
+    )
     interface = {
         "inputs": [flat_observation_port(sizes)],
         "outputs": [vector_port("action", action_size, low=low, high=high)],
@@ -111,25 +109,15 @@ def task_policy_card(context: CardContext) -> CardPage:
         f"(opset {ONNX_OPSET}, normaliser and bounds inside) for ONNX Runtime (the `export` extra); see "
         f"{links.page('deployment', 'guides/deployment.md')}.",
     ]
-    limitations = [f"- {note}" for note in card.get("notes", [])]
-    limitations.append(f"- Trained and measured on `{task}` only, with the settings above.")
+    limitations = [*context.notes(), f"- Trained and measured on `{task}` only, with the settings above."]
     if decoder:
         limitations.append(
             "- It needs the decoder it was trained on (and its latent prior, where it acts around one): loading "
             "finds them at their recorded path or by their shipped name and compares their SHA-256."
         )
-    sections = in_card_order(
-        overview,
-        [intended],
-        training,
-        inputs,
-        artifacts,
-        runtime,
-        limitations,
-        provenance_lines(context, "Written by `mocap-hierarchy transfer train`.", TASK_POLICY_TRAINING_FACTS),
-    )
-    title = f"Task policy `{context.shipped}`" if context.shipped else f"Task policy `{context.display}`"
-    return CardPage(title, opening_line(context), sections)
+    title = f"Task policy `{context.shipped or context.display}`"
+    sections = (overview, [intended], training, inputs, artifacts, runtime, limitations)
+    return context.page(title, sections, "Written by `mocap-hierarchy transfer train`.", TASK_POLICY_TRAINING_FACTS)
 
 
 TASK_POLICY_TRAINING_FACTS = ("steps", "config")
@@ -165,16 +153,6 @@ def _policy_loading(context: CardContext, task: str) -> str:
     if context.shipped:
         return f"Shipped with the library as `{source}` (package data; nothing is downloaded): {commands}"
     return commands
-
-
-def _policy_scores(card: dict[str, Any]) -> list[str]:
-    """The card's ``scores`` as a table of measures, under its protocol; empty without scores."""
-    scores = dict(card.get("scores", {}))
-    protocol = scores.pop("protocol", None) or card.get("protocol")
-    if not scores:
-        return []
-    rows = [[f"`{key}`", "-" if value is None else text(value)] for key, value in scores.items()]
-    return [*([str(protocol), ""] if protocol else []), *table(["measure", "value"], rows)]
 
 
 def _no_scores(context: CardContext) -> str:

@@ -3,17 +3,17 @@
 ``mocap-hierarchy decoder card``, the documentation site's model pages and the
 ``MODEL_CARD.md`` that ``distill train`` writes beside its decoder all call
 :func:`card_page`, so the three cannot disagree. A page is made from the file
-alone: the model card JSON stored in its description (:mod:`hierarchy.model_card`;
+alone: the model card JSON stored in its description (:mod:`hierarchy.cards.model_card`;
 any kind of file may carry one under ``provenance["model_card"]``) and the rest of
 its description (spec and provenance), its size and hashes. A shipped file also
 names its shipped companion (a decoder's latent prior, a prior's decoder, a task
 policy's decoder) and the name that loads it.
 
 Each kind of file has a builder, chosen by the file's format: decoders, latent priors
-and task policies are built in :mod:`hierarchy.card_builders`; :func:`register_card_builder`
-adds one for another format (expert policies, say) from a package above this one. This
+and task policies are built beside this module; :func:`register_card_builder`
+adds one for another format from a package above this one (:mod:`distill.cards`). This
 module resolves the file, picks its builder and gives it the file's
-:class:`~hierarchy.card_markdown.CardContext`.
+:class:`~hierarchy.cards.markdown.CardContext`.
 """
 
 from __future__ import annotations
@@ -23,13 +23,13 @@ from pathlib import Path
 
 import hierarchy.pretrained as pretrained
 from foundation.atomic import write_text
-from hierarchy.card_builders.decoder import decoder_card
-from hierarchy.card_builders.latent_prior import prior_card
-from hierarchy.card_builders.task_policy import TASK_POLICY_FORMAT, task_policy_card
-from hierarchy.card_markdown import CARD_FILE, CardBuilder, CardContext, CardPage, DocLinks, FileFacts, read_file_facts
+from hierarchy.cards.decoder import decoder_card
+from hierarchy.cards.latent_prior import prior_card
+from hierarchy.cards.markdown import CARD_FILE, CardBuilder, CardContext, CardPage, DocLinks, FileFacts, read_file_facts
+from hierarchy.cards.model_card import CARD_KEY, ModelCardError, check_card
+from hierarchy.cards.task_policy import TASK_POLICY_FORMAT, task_policy_card
 from hierarchy.decoder import DECODER_FORMAT
 from hierarchy.latent_prior import PRIOR_FORMAT, shipped_prior_name
-from hierarchy.model_card import CARD_KEY, ModelCardError, check_card
 
 
 def card_page(path: str | os.PathLike, links: DocLinks | None = None) -> str:
@@ -77,7 +77,7 @@ def register_card_builder(
 
     Args:
         file_format: The ``format`` of the files' JSON description.
-        builder: Builds the page from a :class:`~hierarchy.card_markdown.CardContext`.
+        builder: Builds the page from a :class:`~hierarchy.cards.markdown.CardContext`.
         command: The command that prints such a card, followed on the page by the file's name.
     """
     CARD_BUILDERS[file_format] = builder

@@ -2,12 +2,12 @@
 
 Built from the file alone (its :class:`~distill.gpt.model.GptSpec`, provenance and tensors, and
 a model card JSON under ``provenance["model_card"]`` where ``mocap-hierarchy gpt package``
-attached one) by the renderer of :mod:`hierarchy.card_page`; importing this module registers
-the builder, so :func:`hierarchy.card_page.card_page` then renders GPT files too.
+attached one) by the renderer of :mod:`hierarchy.cards.page`; importing this module registers
+the builder, so :func:`hierarchy.cards.page.card_page` then renders GPT files too.
 ``mocap-hierarchy gpt card`` prints it. A shipped GPT's page is titled with its name
 (``synthetic-v3``), which loads it.
 
-A GPT's card holds the fields of :mod:`hierarchy.model_card` that apply (``summary``,
+A GPT's card holds the fields of :mod:`hierarchy.cards.model_card` that apply (``summary``,
 ``intended_use``, ``data``, ``budgets``, ``commands``, ``notes``) and ``scores``: motion
 completion of the GPT against the baselines after the same prompt, flat so every card reader
 takes it (:func:`distill.gpt.completion_report.completion_scores` makes it from a
@@ -20,30 +20,28 @@ fraction of episodes that reached the step limit).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import distill.gpt.shipped as shipped
 from distill.gpt.model import GPT_FORMAT
 from foundation.interfaces import flat_observation_port, vector_port
-from hierarchy.card_markdown import (
+from hierarchy.cards.markdown import (
     WALKER,
     CardContext,
     CardPage,
     artifact_lines,
     bullets,
     commands_block,
-    float16_note,
-    in_card_order,
+    float16_lines,
     interface_lines,
-    opening_line,
-    provenance_lines,
+    net_weights,
     runtime_lines,
     table,
+    written_by,
 )
-from hierarchy.card_page import register_card_builder
-from hierarchy.model_card import ModelCardError, check_card
+from hierarchy.cards.model_card import ModelCardError, check_card
+from hierarchy.cards.page import register_card_builder
 from tasks.walker import CONTROL_TIMESTEP
 
 GPT_TRAINING_FACTS = ("dataset", "steps", "final_loss")
@@ -57,7 +55,7 @@ MOVING = "moving"
 
 
 def check_gpt_card(card: Any, where: str = "") -> dict[str, Any]:
-    """Returns ``card`` when its fields have the expected JSON types (:func:`hierarchy.model_card.check_card`).
+    """Returns ``card`` when its fields have the expected JSON types (:func:`hierarchy.cards.model_card.check_card`).
 
     Every score but ``protocol`` must be a number (a score key is ``COMPLETER/VARIANT``,
     ``COMPLETER/VARIANT/moving`` or ``COMPLETER/VARIANT/at_limit``).
@@ -121,11 +119,7 @@ def _percent(value: Any) -> str:
 def _shipped(context: CardContext) -> CardContext:
     """``context`` naming a shipped GPT by its name (display, source, command); others unchanged."""
     name = shipped.shipped_gpt_name(context.facts.path)
-    if name is None:
-        return context
-    relative = context.facts.path.resolve().relative_to(shipped.SHIPPED_GPTS_FOLDER.resolve())
-    display = (Path("distill/gpt/pretrained") / relative).as_posix()
-    return replace(context, shipped=name, display=display, source=name, command=f"mocap-hierarchy gpt card {name}")
+    return context.shipped_as(name, shipped.SHIPPED_GPTS_FOLDER, "distill/gpt/pretrained", GPT_CARD_COMMAND)
 
 
 def gpt_card(context: CardContext) -> CardPage:
@@ -190,36 +184,23 @@ def gpt_card(context: CardContext) -> CardPage:
         "(block - 1) + 1 steps in all); fed one state per step with its key/value cache (`MotionGpt.step`), it acts "
         "as `MotionGpt.predict` on that history.",
     ]
-    weights = facts.dtype_of("net.")
-    widened = " (widened to float32 on loading)" if weights != "float32" else ""
-    artifacts = artifact_lines(context, f"`net.*` {weights}{widened}, normaliser {facts.dtype_of('observation_')}")
+    artifacts = artifact_lines(context, net_weights(facts, "observation_"))
     artifacts.append(f"- the file format: {links.page('the motion GPT file', 'reference/formats/gpt.md')}")
     runtime = runtime_lines("`distill.gpt.load_gpt`", WALKER)
     runtime.append(
         '- **Environments**: the `motion_completion` task (`tasks.make("motion_completion", ...)`) with a prompt '
         "policy; `distill.gpt.completion.complete_motions` measures it against the baselines."
     )
-    limitations = [f"- {note}" for note in card.get("notes", [])]
-    limitations += [
+    limitations = [
+        *context.notes(),
         "- It reads the states of the motions it was trained on: after other prompts, or far from those states, its "
         "actions are extrapolation.",
         "- It sees no reference and no goal: it continues a motion, it cannot be told which one.",
+        *float16_lines(facts, "GPT", "mocap-hierarchy gpt package", " on real token windows"),
     ]
-    if weights == "float16":
-        limitations.append(float16_note("GPT", "mocap-hierarchy gpt package", " on real token windows"))
-    made_by = "Written by `mocap-hierarchy gpt train`"
-    made_by += ", packaged with `mocap-hierarchy gpt package`." if card else "."
-    sections = in_card_order(
-        overview,
-        [intended],
-        training,
-        inputs,
-        artifacts,
-        runtime,
-        limitations,
-        provenance_lines(context, made_by, GPT_TRAINING_FACTS, commands=[]),
-    )
-    return CardPage(f"Motion GPT `{context.shipped or context.display}`", opening_line(context), sections)
+    sections = (overview, [intended], training, inputs, artifacts, runtime, limitations)
+    title = f"Motion GPT `{context.shipped or context.display}`"
+    return context.page(title, sections, written_by("gpt", card), GPT_TRAINING_FACTS, commands=[])
 
 
 def _data_facts(provenance: Mapping[str, Any]) -> dict[str, Any]:
@@ -231,4 +212,7 @@ def _data_facts(provenance: Mapping[str, Any]) -> dict[str, Any]:
     return {"rollout files": f"{len(dataset)} ({names})"}
 
 
-register_card_builder(GPT_FORMAT, gpt_card, command="mocap-hierarchy gpt card")
+GPT_CARD_COMMAND = "mocap-hierarchy gpt card"
+"""The command that prints a GPT's card."""
+
+register_card_builder(GPT_FORMAT, gpt_card, command=GPT_CARD_COMMAND)

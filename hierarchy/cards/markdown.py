@@ -1,6 +1,6 @@
 """The parts every model card page is made of: its eight sections, file facts, tables and links.
 
-:mod:`hierarchy.card_page` builds a page per kind of file (decoder, latent prior,
+:mod:`hierarchy.cards.page` builds a page per kind of file (decoder, latent prior,
 task policy) from these parts; nothing here knows a kind beyond the name of its card's
 documentation page (:func:`card_page_name`). A page has the same
 sections, in the same order, whatever it describes (:data:`SECTIONS`), and reads
@@ -11,14 +11,13 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from foundation.fingerprints import file_sha256
 from foundation.json_fields import parse_json, require_mapping
-from hierarchy.model_card import CARD_KEY, ModelCardError
-from tasks.tracking.metrics import TRACKING_METRICS
+from hierarchy.cards.model_card import CARD_KEY, ModelCardError
 
 SECTIONS = (
     "Overview",
@@ -153,23 +152,28 @@ def card_page_name(name: str, kind: str = "decoder") -> str:
     return f"{name}-prior.md" if kind == "prior" else f"{name}.md"
 
 
-def in_card_order(*parts: Sequence[str]) -> dict[str, Sequence[str]]:
-    """The eight sections' lines given in :data:`SECTIONS` order, as :class:`CardPage` takes them."""
-    return dict(zip(SECTIONS, parts, strict=True))
-
-
-def float16_note(kind: str, command: str, where: str = "") -> str:
-    """The limitation every card of a float16 file states: its actions differ slightly from the float32 original's.
+def float16_lines(facts: FileFacts, kind: str, command: str, where: str = "") -> list[str]:
+    """The limitation every card of a file with float16 ``net.*`` weights states (none for other files).
 
     Args:
+        facts: The file's facts.
         kind: What the file holds (``decoder``, ``expert``, ``GPT``).
         command: The command that packaged it and printed the largest difference.
         where: On what that difference was measured, if worth saying (`` on real token windows``).
     """
-    return (
+    if facts.dtype_of("net.") != "float16":
+        return []
+    return [
         f"- Its weights are stored as float16: its actions differ slightly from those of the float32 {kind} it was "
         f"packaged from (`{command}` prints the largest difference{where})."
-    )
+    ]
+
+
+def net_weights(facts: FileFacts, normaliser: str) -> str:
+    """The weights of a file whose ``net.*`` tensors load as float32, however stored, and its normaliser's dtype."""
+    weights = facts.dtype_of("net.")
+    widened = " (widened to float32 on loading)" if weights != "float32" else ""
+    return f"`net.*` {weights}{widened}, normaliser {facts.dtype_of(normaliser)}"
 
 
 @dataclass(frozen=True)
@@ -236,6 +240,35 @@ class CardContext:
         provenance = self.facts.description.get("provenance")
         return {k: v for k, v in provenance.items() if k != CARD_KEY} if isinstance(provenance, dict) else {}
 
+    def notes(self) -> list[str]:
+        """The card's ``notes`` as Limitations lines."""
+        return [f"- {note}" for note in self.card.get("notes", [])]
+
+    def page(
+        self,
+        title: str,
+        sections: Sequence[Sequence[str]],
+        made_by: str,
+        shown: tuple[str, ...] = (),
+        commands: list[str] | None = None,
+    ) -> CardPage:
+        """The page titled ``title``: the seven ``sections`` before Provenance, in :data:`SECTIONS` order.
+
+        Provenance is :func:`provenance_lines` of ``made_by``, ``shown`` and ``commands``.
+        """
+        parts = [*sections, provenance_lines(self, made_by, shown, commands)]
+        return CardPage(title, opening_line(self), dict(zip(SECTIONS, parts, strict=True)))
+
+    def shipped_as(self, name: str | None, folder: Path, shown_under: str, command: str) -> CardContext:
+        """This context naming a file shipped in ``folder`` as ``name`` by that name; unchanged for None.
+
+        The page shows the file as ``shown_under/...`` and names ``command NAME`` as what prints it.
+        """
+        if name is None:
+            return self
+        display = (Path(shown_under) / self.facts.path.resolve().relative_to(folder.resolve())).as_posix()
+        return replace(self, shipped=name, display=display, source=name, command=f"{command} {name}")
+
 
 CardBuilder = Callable[[CardContext], CardPage]
 """Builds the page of one kind of file from its :class:`CardContext`."""
@@ -281,6 +314,33 @@ def provenance_lines(
     if commands:
         lines += ["", "Commands that rebuild it, in order:", "", *commands_block(commands)]
     return lines
+
+
+def written_by(group: str, card: Mapping[str, Any]) -> str:
+    """The Provenance opening of a file ``mocap-hierarchy GROUP train`` writes (and ``GROUP package`` carded)."""
+    return f"Written by `mocap-hierarchy {group} train`" + (
+        f", packaged with `mocap-hierarchy {group} package`." if card else "."
+    )
+
+
+def budgets_and_scores(card: Mapping[str, Any], scores: list[str], none: str) -> list[str]:
+    """The Training section's Budgets (when the card has them) and Scores (``none`` when ``scores`` is empty)."""
+    budgets = ["", "### Budgets", "", *bullets(card["budgets"])] if card.get("budgets") else []
+    return [*budgets, "", "### Scores", "", *(scores or [none])]
+
+
+def scores_table(
+    scores: Mapping[str, Any], header: str, label: Callable[[str], str], protocol: Any = None
+) -> list[str]:
+    """Flat ``scores`` as their protocol (``protocol`` when they hold none) and a table of ``header`` and value.
+
+    Empty when there are no scores beside the protocol.
+    """
+    rows = [[label(key), "-" if value is None else text(value)] for key, value in scores.items() if key != "protocol"]
+    if not rows:
+        return []
+    protocol = scores.get("protocol") or protocol
+    return [*([str(protocol), ""] if protocol else []), *table([header, "value"], rows)]
 
 
 # ----------------------------------------------------------------------------------------------- small parts
@@ -358,62 +418,6 @@ def _range(entry: Mapping[str, Any]) -> str:
     if "low" in entry and "high" in entry:
         return f"each in [{entry['low']:g}, {entry['high']:g}]"
     return entry.get("values", "raw")
-
-
-def scores_markdown(card: Mapping[str, Any]) -> list[str]:
-    """The card's scores as Markdown lines: its protocol, a table per snippet, the multi-clip fraction.
-
-    Empty when the card holds no expert scores.
-    """
-    experts, policy = card.get("experts", {}), card.get("multi_clip", {})
-    if not experts:
-        return []
-    lines = [
-        card.get("protocol", ""),
-        "",
-        "| snippet | expert reward | expert length | multi-clip reward | multi-clip length | fraction (reward) |",
-        "|---|---|---|---|---|---|",
-    ]
-    for snippet, row in experts.items():
-        other = policy.get("snippets", {}).get(snippet, {})
-        reward, own = other.get("normalized_reward"), row.get("normalized_reward")
-        fraction = reward / own if reward is not None and own else None
-        lines.append(
-            f"| {snippet} | {_number(own)} | {_number(row.get('normalized_length'))} | "
-            f"{_number(reward)} | {_number(other.get('normalized_length'))} | {_number(fraction)} |"
-        )
-    fraction = policy.get("fraction", {})
-    if fraction:
-        lines += [
-            "",
-            f"Multi-clip policy as a fraction of the experts (mean over {fraction.get('snippets')} snippets): "
-            f"reward **{_number(fraction.get('normalized_reward'))}**, "
-            f"length **{_number(fraction.get('normalized_length'))}**.",
-        ]
-    return [*lines, "", *_tracking_lines(policy.get("snippets", {}))]
-
-
-def _tracking_lines(snippets: Mapping[str, Any]) -> list[str]:
-    """The multi-clip policy's tracking metrics per snippet, where its evaluation measured them (since 2026-11-26)."""
-    measured = {name: row for name, row in snippets.items() if isinstance(row, Mapping) and "success" in row}
-    if not measured:
-        return []
-    lines = [
-        "The multi-clip policy's tracking metrics over the same episodes (success: the snippet's end reached; "
-        "errors of the 31 tracked bodies):",
-        "",
-        "| snippet | success | G-MPJPE (mm) | MPJPE (mm) | vel. error (mm/step) | acc. error (mm/step²) |",
-        "|---|---|---|---|---|---|",
-    ]
-    for name, row in measured.items():
-        errors = [row.get(key) for key in TRACKING_METRICS[1:]]
-        cells = " | ".join("-" if value is None else f"{value:.1f}" for value in errors)
-        lines.append(f"| {name} | {_number(row.get('success'))} | {cells} |")
-    return [*lines, ""]
-
-
-def _number(value: float | None) -> str:
-    return "-" if value is None else f"{value:.3f}"
 
 
 def commands_block(commands: Sequence[str]) -> list[str]:

@@ -2,7 +2,7 @@
 
 A card is plain JSON stored in the file's description under
 ``provenance["model_card"]`` (so ``decoder info`` shows it and the file is its
-one source); :mod:`hierarchy.card_page` renders it, with the rest of the file's
+one source); :mod:`hierarchy.cards.page` renders it, with the rest of the file's
 description, as a Markdown page (``decoder card``, the documentation site, the
 ``MODEL_CARD.md`` that ``distill train`` writes beside its decoder). Its fields,
 all optional:
