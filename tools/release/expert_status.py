@@ -60,7 +60,8 @@ def main() -> None:
             f"  {'yes' if row['finished'] else 'no'}"
         )
     if args.json is not None:
-        args.json.write_text(json.dumps({"runs": rows}, indent=1) + "\n")
+        runs = {row.pop("snippet"): row for row in rows}
+        args.json.write_text(json.dumps({"runs": runs}, indent=1) + "\n")
 
 
 if __name__ == "__main__":
