@@ -47,3 +47,23 @@ def test_the_card_holds_the_final_evaluation_and_passes_the_card_checks(tmp_path
     assert "--snippet SYN_walk_slow-0-182" in card["commands"][0] and "--steps" not in card["commands"][0]
     with pytest.raises(FileNotFoundError):
         expert_card.expert_card(tmp_path / "missing", "synthetic-v3", "")
+
+
+def test_expert_status_reads_where_a_run_stands_and_its_final_evaluation(tmp_path, monkeypatch):
+    monkeypatch.syspath_prepend(str(ROOT))  # run as `python -m tools.release.expert_status` from the root
+    expert_status = load_script(ROOT / "tools" / "release" / "expert_status.py", "release_expert_status")
+    finished = fake_run(tmp_path / "SYN_walk_slow-0-182", [100, 200, 50, 80])
+    evaluations = [
+        {"steps": 0, "normalized_length": 0.7, "normalized_reward": 0.2, "tracking": {"success": 0.1}},
+        {"steps": 50_000, "normalized_length": 0.99, "normalized_reward": 0.5, "tracking": {"success": 0.9}},
+        {"steps": 100_000, "normalized_length": 0.95, "normalized_reward": 0.6, "tracking": {"success": 0.8}},
+    ]
+    (finished / "eval_rsi").mkdir()
+    (finished / "eval_rsi" / "evaluations.json").write_text(json.dumps(evaluations))
+    row = expert_status.run_status(finished)
+    assert row["steps"] == 100_000 and row["minutes"] == pytest.approx(280 / 60, abs=0.05)
+    assert (row["last_length"], row["best_length"], row["best_at_steps"]) == (0.95, 0.99, 50_000)
+    assert row["finished"] and row["final"]["episodes"] == 1000 and row["final"]["success"] == 0.93412
+    waiting = tmp_path / "CMU_016_22-0-82"
+    waiting.mkdir()
+    assert expert_status.run_status(waiting) == {**expert_status.run_status(waiting), "steps": 0, "finished": False}
