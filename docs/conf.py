@@ -26,6 +26,7 @@ source_suffix = {".md": "markdown"}
 root_doc = "index"
 exclude_patterns = ["_build", "figures/report_*", "**/README.md"]
 
+smartquotes = False  # `--profile` in prose stays two hyphens (Docutils would make it an en dash)
 myst_heading_anchors = 4  # `page.md#a-heading` links resolve like GitHub's
 myst_enable_extensions = ["colon_fence", "deflist"]
 

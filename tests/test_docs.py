@@ -103,6 +103,12 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
     assert result.returncode == 0, result.stderr[-4000:]
     built = (tmp_path / "html" / "reference" / "cli.html").read_text()
     assert "mocap-hierarchy expert train" in built and "--profile" in built  # generated from the parsers
+    dashed = [
+        str(page.relative_to(tmp_path / "html"))
+        for page in (tmp_path / "html").rglob("*.html")
+        if re.search("\u2013[a-z]", page.read_text())
+    ]
+    assert dashed == []  # a flag written `--profile` in prose must not turn into an en dash
     api = (tmp_path / "html" / "reference" / "api.html").read_text()
     assert 'id="hierarchy.train_transfer"' in api and 'id="tasks.register"' in api  # autodoc found the members
 
