@@ -4,6 +4,7 @@
 * :mod:`distill.dataset`: the rollout dataset (schema, writer, reader, window sampler);
 * :mod:`distill.npmp`: the multi-clip policy; its training writes the frozen decoder file;
 * :mod:`distill.gpt`: the motion GPT and motion completion;
+* :mod:`distill.catalogue`: the one catalogue of every artifact shipped with the library, of every kind;
 * :mod:`distill.trainer`: the one supervised loop NPMP and GPT training share
   (its settings in :mod:`distill.trainer_config`, its parts in :mod:`distill.supervised`).
 """

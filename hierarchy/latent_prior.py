@@ -231,23 +231,24 @@ class LatentPrior(nn.Module):
         return write_described(path, tensors, PRIOR_FORMAT, PRIOR_SCHEMA_VERSION, asdict(self.spec))
 
 
-def _shipped() -> ShippedArtifacts:
+def prior_shelf() -> ShippedArtifacts:
+    """The shipped latent priors, by their decoder's name (read at each call)."""
     return ShippedArtifacts(pretrained.PRETRAINED_FOLDER / PRIORS_SUBFOLDER, "latent prior")
 
 
 def resolve_prior(source: str | os.PathLike) -> Path:
     """An existing path, else the prior shipped for the decoder named ``source`` (unchanged if none)."""
-    return _shipped().resolve(source)
+    return prior_shelf().resolve(source)
 
 
 def shipped_priors() -> dict[str, Path]:
     """``{decoder name: prior file}`` of the shipped decoders that come with a prior."""
-    return _shipped().names()
+    return prior_shelf().names()
 
 
 def shipped_prior_name(path: str | os.PathLike) -> str | None:
     """The decoder name under which ``path`` is shipped, if it is a shipped prior."""
-    return _shipped().name_of(path)
+    return prior_shelf().name_of(path)
 
 
 def load_latent_prior(source: str | os.PathLike, device: str | torch.device = "cpu") -> LatentPrior:

@@ -29,15 +29,24 @@ import gymnasium as gym
 import numpy as np
 
 import tasks
-from distill.experts.shipped import names_hint as experts_hint
-from distill.experts.shipped import resolve_experts
+from distill.catalogue import POLICY_HINT_KINDS, POLICY_KINDS, catalogue
 from foundation.described_file import METADATA_KEY
-from hierarchy.pretrained import names_hint, resolve_model, task_policies_hint
+from foundation.shipped import Entry
 
 Act = Callable[[dict[str, np.ndarray]], np.ndarray]
 Rollout = tuple[gym.Env, Act, Callable[[], None] | None]
 """An environment, ``act(observation) -> action``, and what to run after each reset (or None)."""
 TRACKING_TASKS = ("tracking", "tracking_expert", "motion_completion")
+KIND_FORMATS = {"decoder": "decoder", "task policy": "task_policy", "expert": "expert"}
+"""The file format each kind of shipped policy has; an expert group has none (record refuses it as a folder)."""
+
+
+def policy_entry(policy: str) -> Entry | None:
+    """What the shipped name ``policy`` is (:data:`distill.catalogue.POLICY_KINDS`, first wins), or None.
+
+    None too when ``policy`` is an existing path, which always wins over a name.
+    """
+    return None if Path(policy).exists() else catalogue().lookup(policy, POLICY_KINDS)
 
 
 def file_format(path: Path) -> str:
@@ -49,7 +58,7 @@ def file_format(path: Path) -> str:
     if not path.exists():
         raise FileNotFoundError(
             f"policy {path} does not exist (give a file, an expert directory, 'random' or a shipped name; "
-            f"{names_hint()}; {task_policies_hint()}; {experts_hint()})"
+            f"{catalogue().hint(*POLICY_HINT_KINDS)})"
         )
     if path.is_dir():
         raise ValueError(f"{path} is a folder but not an expert directory; name the .safetensors file inside it")
@@ -75,10 +84,9 @@ def build_rollout(
         ValueError: A policy that cannot drive ``task``, with what would.
     """
     overrides = dict(overrides or {})
-    path = resolve_model(policy)  # a shipped decoder's or task policy's name works too; anything else stays as given
-    if not path.exists():
-        path = resolve_experts(policy)  # then a shipped expert's
-    kind = file_format(path)
+    entry = policy_entry(policy)  # looked up once: an existing path, else a shipped name, else as given
+    path = entry.path if entry else Path(policy)
+    kind = (entry and KIND_FORMATS.get(entry.kind)) or file_format(path)
     if kind == "random":
         env = tasks.make(task, **overrides)
         env.action_space.seed(seed)

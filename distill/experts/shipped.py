@@ -17,19 +17,31 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from foundation.shipped import ShippedArtifacts
+from foundation.shipped import ListedArtifacts, ShippedArtifacts
 
 SHIPPED_EXPERTS_FOLDER = Path(__file__).resolve().parent / "pretrained"
 """Where the shipped experts lie (package data); read at each call, so tests can point it elsewhere."""
 
 
-def _shipped() -> ShippedArtifacts:
-    return ShippedArtifacts(SHIPPED_EXPERTS_FOLDER, "expert", pattern="*/*", suffix="")
+class _ShippedExperts(ShippedArtifacts):
+    def hint(self) -> str:
+        return names_hint()
+
+
+def expert_shelf() -> ShippedArtifacts:
+    """The shipped experts (their card sources in ``distill/experts/cards/GROUP/SNIPPET.card.json``)."""
+    cards = SHIPPED_EXPERTS_FOLDER.parent / "cards"
+    return _ShippedExperts(SHIPPED_EXPERTS_FOLDER, "expert", pattern="*/*", suffix="", cards=cards)
+
+
+def expert_group_shelf() -> ListedArtifacts:
+    """The groups of shipped experts, each naming the folder of all its experts."""
+    return ListedArtifacts("expert group", shipped_groups())
 
 
 def shipped_experts() -> dict[str, Path]:
     """``{name: expert directory}`` of every shipped expert, sorted by name (``synthetic-v3/SYN_...``)."""
-    return _shipped().names()
+    return expert_shelf().names()
 
 
 def shipped_groups() -> dict[str, Path]:
@@ -44,7 +56,7 @@ def resolve_experts(source: str | os.PathLike) -> Path:
     Unknown names come back unchanged as paths, so the caller's missing-directory error
     (which should list :func:`names_hint`) reports them.
     """
-    path = _shipped().resolve(source)
+    path = expert_shelf().resolve(source)
     if path.exists():
         return path
     return shipped_groups().get(Path(source).as_posix(), path)
@@ -52,7 +64,7 @@ def resolve_experts(source: str | os.PathLike) -> Path:
 
 def shipped_name(path: str | os.PathLike) -> str | None:
     """The shipped name of expert directory ``path`` when it is a shipped expert, else None."""
-    return _shipped().name_of(path)
+    return expert_shelf().name_of(path)
 
 
 def names_hint() -> str:

@@ -21,13 +21,14 @@ SHIPPED_GPTS_FOLDER = Path(__file__).resolve().parent / "pretrained"
 """Where the shipped GPTs lie (package data); read at each call, so tests can point it elsewhere."""
 
 
-def _shipped() -> ShippedArtifacts:
-    return ShippedArtifacts(SHIPPED_GPTS_FOLDER, "motion GPT")
+def gpt_shelf() -> ShippedArtifacts:
+    """The shipped GPTs (their card sources in ``distill/gpt/cards/NAME.card.json``)."""
+    return ShippedArtifacts(SHIPPED_GPTS_FOLDER, "motion GPT", cards=SHIPPED_GPTS_FOLDER.parent / "cards")
 
 
 def shipped_gpts() -> dict[str, Path]:
     """``{name: file}`` of every shipped GPT, sorted by name."""
-    return _shipped().names()
+    return gpt_shelf().names()
 
 
 def resolve_gpt(source: str | os.PathLike) -> Path:
@@ -36,14 +37,14 @@ def resolve_gpt(source: str | os.PathLike) -> Path:
     Unknown names come back as paths, so the loader's missing-file error (which lists
     :func:`names_hint`) reports them.
     """
-    return _shipped().resolve(source)
+    return gpt_shelf().resolve(source)
 
 
 def shipped_gpt_name(path: str | os.PathLike) -> str | None:
     """The shipped name of GPT file ``path`` when it is a shipped GPT, else None."""
-    return _shipped().name_of(path)
+    return gpt_shelf().name_of(path)
 
 
 def names_hint() -> str:
     """How messages list the shipped GPTs (or say there are none)."""
-    return _shipped().hint()
+    return gpt_shelf().hint()

@@ -240,6 +240,16 @@ def card_of_file(path: Path) -> str:
     return card_page(path, doc_links())
 
 
+PAGE_KINDS = {
+    "decoder": "decoder",
+    "latent prior": "prior",
+    "task policy": "policy",
+    "expert": "expert",
+    "motion GPT": "gpt",
+}
+"""The kinds of :func:`distill.catalogue.catalogue` with a card page, and the page name's kind."""
+
+
 def model_pages() -> dict[str, str]:
     """``{file name: page}`` of every shipped decoder, prior, task policy, snippet expert and motion GPT.
 
@@ -247,25 +257,18 @@ def model_pages() -> dict[str, str]:
     ``gpt-NAME.md`` (none of a kind that is not shipped).
     """
     import distill.cards  # noqa: F401  (registers the expert and GPT card builders)
+    from distill.catalogue import catalogue
     from distill.experts.files import ExpertDir
-    from distill.experts.shipped import shipped_experts
-    from distill.gpt.shipped import shipped_gpts
     from hierarchy.cards.markdown import card_page_name
-    from hierarchy.latent_prior import shipped_priors
-    from hierarchy.pretrained import pretrained_decoders, shipped_task_policies
 
-    priors = shipped_priors()
+    shipped = catalogue()
+    decoders = {entry.name for entry in shipped.entries(["decoder"])}
     pages = {}
-    for name, path in pretrained_decoders().items():
-        pages[card_page_name(name)] = card_of_file(path)
-        if name in priors:
-            pages[card_page_name(name, "prior")] = card_of_file(priors[name])
-    for name, path in shipped_task_policies().items():
-        pages[card_page_name(name, "policy")] = card_of_file(path)
-    for name, path in shipped_experts().items():
-        pages[card_page_name(name, "expert")] = card_of_file(ExpertDir(path).sidecar)
-    for name, path in shipped_gpts().items():
-        pages[card_page_name(name, "gpt")] = card_of_file(path)
+    for entry in shipped.entries(PAGE_KINDS):
+        if entry.kind == "latent prior" and entry.name not in decoders:
+            continue  # a prior's page hangs off its decoder's
+        card_file = ExpertDir(entry.path).sidecar if entry.kind == "expert" else entry.path
+        pages[card_page_name(entry.name, PAGE_KINDS[entry.kind])] = card_of_file(card_file)
     return pages
 
 

@@ -30,10 +30,14 @@ PRETRAINED_FOLDER = Path(__file__).resolve().parent
 POLICIES_SUBFOLDER = "policies"
 """The folder below :data:`PRETRAINED_FOLDER` of the shipped task policies (``DECODER/TASK.safetensors``)."""
 
+CARDS_SUBFOLDER = "cards"
+"""The folder below :data:`PRETRAINED_FOLDER` of the model cards' JSON sources (``NAME.card.json``,
+``policies/DECODER/TASK.card.json``)."""
+
 
 def shipped_decoders() -> ShippedArtifacts:
     """The shipped decoders, by name (read at each call: tests point ``PRETRAINED_FOLDER`` elsewhere)."""
-    return ShippedArtifacts(PRETRAINED_FOLDER, "decoder")
+    return ShippedArtifacts(PRETRAINED_FOLDER, "decoder", cards=PRETRAINED_FOLDER / CARDS_SUBFOLDER)
 
 
 def pretrained_decoders() -> dict[str, Path]:
@@ -60,16 +64,20 @@ def names_hint() -> str:
     return shipped_decoders().hint()
 
 
-def _task_policies() -> ShippedArtifacts:
+def task_policy_shelf() -> ShippedArtifacts:
     """The shipped task policies (read at each call, like :func:`shipped_decoders`)."""
     return ShippedArtifacts(
-        PRETRAINED_FOLDER / POLICIES_SUBFOLDER, "task policy", "*/*.safetensors", plural="task policies"
+        PRETRAINED_FOLDER / POLICIES_SUBFOLDER,
+        "task policy",
+        "*/*.safetensors",
+        plural="task policies",
+        cards=PRETRAINED_FOLDER / CARDS_SUBFOLDER / POLICIES_SUBFOLDER,
     )
 
 
 def shipped_task_policies() -> dict[str, Path]:
     """``{name: file}`` of every shipped task policy (``synthetic-v3/velocity_control``), sorted by name."""
-    return _task_policies().names()
+    return task_policy_shelf().names()
 
 
 def resolve_task_policy(source: str | os.PathLike) -> Path:
@@ -78,17 +86,17 @@ def resolve_task_policy(source: str | os.PathLike) -> Path:
     Anything else comes back unchanged as a path, so the loader's missing-file error
     (which lists the shipped names, :func:`task_policies_hint`) reports it.
     """
-    return _task_policies().resolve(source)
+    return task_policy_shelf().resolve(source)
 
 
 def task_policy_name(path: str | os.PathLike) -> str | None:
     """The shipped name of ``path`` when it is one of the shipped task policies, else None."""
-    return _task_policies().name_of(path)
+    return task_policy_shelf().name_of(path)
 
 
 def task_policies_hint() -> str:
     """How messages list the shipped task policies' names (or say there are none)."""
-    return _task_policies().hint()
+    return task_policy_shelf().hint()
 
 
 def resolve_model(source: str | os.PathLike) -> Path:

@@ -1,4 +1,4 @@
-"""``mocap-hierarchy record`` and ``view``: rerun recordings (and videos) of any policy on any task."""
+"""``mocap-hierarchy record``, ``view`` and ``models``: rerun recordings of any policy on any task, shipped names."""
 
 from __future__ import annotations
 
@@ -9,7 +9,9 @@ from foundation.config_cli import LazySubParsers
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``record`` and ``view``."""
+    """Registers ``record``, ``view`` and ``models``."""
+    from distill.catalogue import KINDS
+
     record = subparsers.add_parser("record", help="record a rollout of any policy on any task into a rerun .rrd file")
     record.add_argument("--task", required=True, help="registered task name (see `mocap-hierarchy tasks`)")
     record.add_argument(
@@ -41,6 +43,12 @@ def add_commands(subparsers: LazySubParsers) -> None:
     view = subparsers.add_parser("view", help="open a .rrd recording in the rerun viewer (or say how to)")
     view.add_argument("file", type=Path, help="the .rrd recording")
     view.set_defaults(handler=_view)
+
+    models = subparsers.add_parser(
+        "models", help="list every artifact shipped with the library (name, kind, file): the names commands take"
+    )
+    models.add_argument("--kind", default=None, choices=KINDS, help="only the artifacts of this kind")
+    models.set_defaults(handler=_models)
 
 
 def _record(args: argparse.Namespace) -> None:
@@ -75,3 +83,26 @@ def _view(args: argparse.Namespace) -> None:
     from mocap_hierarchy.record import view
 
     print(view(args.file))
+
+
+def _models(args: argparse.Namespace) -> None:
+    from distill.catalogue import catalogue
+
+    shipped = catalogue()
+    entries = shipped.entries(None if args.kind is None else [args.kind])
+    if not entries:
+        print(shipped.hint(args.kind) if args.kind else "nothing is shipped with this installation")
+        return
+    root = Path(__file__).resolve().parents[2]
+    rows = [(entry.name, entry.kind, _shown(entry.path, root)) for entry in entries]
+    widths = [max(len(row[i]) for row in rows) for i in range(2)]
+    for name, kind, file in rows:
+        print(f"{name:<{widths[0]}}  {kind:<{widths[1]}}  {file}")
+
+
+def _shown(path: Path, root: Path) -> str:
+    """``path`` below the folder holding the packages where it lies there (package data), else as it is."""
+    try:
+        return path.resolve().relative_to(root).as_posix()
+    except ValueError:
+        return str(path)

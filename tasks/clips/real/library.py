@@ -24,6 +24,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from foundation.shipped import ListedArtifacts
+
 CMU_ATTRIBUTION = (
     "The data used in this project was obtained from mocap.cs.cmu.edu. "
     "The database was created with funding from NSF EIA-0196217."
@@ -66,6 +68,17 @@ class LibraryClip:
     floor: dict[str, float]
 
 
+def clip_library_shelf() -> ListedArtifacts:
+    """The shipped clip libraries, each with its package file."""
+    return ListedArtifacts(
+        "clip library", {name: _package_path(name) for name in sorted(REAL_LIBRARIES)}, "clip libraries"
+    )
+
+
+def _package_path(name: str) -> Path:
+    return Path(str(resources.files("tasks.clips.real").joinpath(REAL_LIBRARIES[name])))
+
+
 def package_file(name: str) -> Path:
     """The package data file of a shipped library.
 
@@ -74,7 +87,7 @@ def package_file(name: str) -> Path:
     """
     if name not in REAL_LIBRARIES:
         raise RealLibraryError(f"no shipped clip library {name!r}; shipped: {', '.join(sorted(REAL_LIBRARIES))}")
-    return Path(str(resources.files("tasks.clips.real").joinpath(REAL_LIBRARIES[name])))
+    return _package_path(name)
 
 
 def library_clips(name: str) -> list[LibraryClip]:
