@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Trains the first real expert group, cmu-locomotion-v1: 24 snippets of the shipped real clip library covering
 # every kind it holds, with the synthetic release's recipe (--profile fast-3m-wide, one seed) on a first budget of
-# 1.5M steps each (BUDGET; the budget may change on resume: raise it for experts still short of 0.9 and rerun,
-# and they continue exactly where they stopped, done.json removed first). Two lanes side by side on a 2-core machine, at low priority so interactive work
+# 1.5M steps each (BUDGET; the budget may change on resume: rerun with a larger BUDGET while a run is short of 0.9
+# and it continues exactly where it stopped; a finished run keeps no checkpoint). Two lanes side by side on a 2-core machine, at low priority so interactive work
 # comes first. Each lane trains one expert of every kind first, then the rest.
 # Resumable: rerun it after a kill (or in a new session) and every expert continues from its checkpoint; finished
 # ones are skipped. Where every run stands: python -m tools.release.expert_status runs/release-cmu-v1/experts
