@@ -310,3 +310,24 @@ def test_every_experiment_page_is_dated_has_a_status_and_its_script():
     for script in sorted(scripts):
         syntax = subprocess.run(["bash", "-n", str(script)], capture_output=True, text=True)
         assert syntax.returncode == 0, f"{script.name}: {syntax.stderr}"
+
+
+def extras_not_named(pyproject: Path, pages: list[Path]) -> dict[str, list[str]]:
+    """Per page, the extras of ``pyproject``'s optional dependencies the page never names as `` `extra` ``."""
+    import tomllib
+
+    extras = sorted(tomllib.loads(pyproject.read_text())["project"]["optional-dependencies"])
+    missing = {str(page.name): [e for e in extras if f"`{e}`" not in page.read_text()] for page in pages}
+    return {page: names for page, names in missing.items() if names}
+
+
+def test_every_extra_is_named_in_the_readme_and_the_install_page(tmp_path):
+    pages = [ROOT / "README.md", DOCS / "getting-started" / "install.md"]
+    assert extras_not_named(ROOT / "pyproject.toml", pages) == {}
+    planted = tmp_path / "pyproject.toml"  # an extra added to the package but to neither page is found
+    planted.write_text(
+        (ROOT / "pyproject.toml")
+        .read_text()
+        .replace("[project.optional-dependencies]\n", '[project.optional-dependencies]\nnewextra = ["x"]\n')
+    )
+    assert extras_not_named(planted, pages) == {"README.md": ["newextra"], "install.md": ["newextra"]}
