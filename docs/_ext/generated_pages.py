@@ -57,7 +57,7 @@ CONFIG_CLASSES = (
 )
 """The settings dataclasses the configs reference lists, in the order of the pipeline."""
 
-HELP_WIDTH = 100
+HELP_WIDTH = 88
 """Terminal width the command-line reference is formatted for (fixed, so the page does not depend on the machine)."""
 
 
