@@ -19,6 +19,7 @@ extensions = [
     "myst_parser",
     "sphinx.ext.autodoc",
     "sphinx.ext.napoleon",
+    "sphinx_copybutton",  # a copy button on every code block; prompts and output lines are not copied
     "generated_pages",  # docs/_ext: the command-line and config references, the model cards
 ]
 
@@ -36,6 +37,8 @@ autodoc_default_options = {"members": True, "show-inheritance": False}
 napoleon_google_docstring = True
 napoleon_numpy_docstring = False
 napoleon_use_ivar = True
+
+copybutton_exclude = ".linenos, .gp, .go"
 
 html_theme = "furo"
 html_title = "mocap-hierarchy"

@@ -109,6 +109,8 @@ def test_the_site_builds_with_warnings_as_errors(tmp_path):
         if re.search("\u2013[a-z]", page.read_text())
     ]
     assert dashed == []  # a flag written `--profile` in prose must not turn into an en dash
+    tutorial = (tmp_path / "html" / "tutorials" / "own-motion.html").read_text()
+    assert "copybutton.js" in tutorial  # every code block gets a copy button
     api = (tmp_path / "html" / "reference" / "api.html").read_text()
     assert 'id="hierarchy.train_transfer"' in api and 'id="tasks.register"' in api  # autodoc found the members
 

@@ -107,12 +107,12 @@ def _import(args: argparse.Namespace) -> None:
     if args.json:
         print(json.dumps({"file": str(out), "clips": rows}, indent=2))
         return
-    print(f"{'clip':<18}{'steps':>6}{'snippets':>9}{'root shift m':>14}{'skating mm/step':>16}{'clearance mm':>13}")
+    print(f"{'clip':<16}{'steps':>6}{'snippets':>9}{'root shift m':>17}{'skating mm/step':>17}{'clearance mm':>14}")
     for row in rows:
         shift = f"{row['root_shift_min_m']:+.3f}..{row['root_shift_max_m']:+.3f}"
         print(
-            f"{row['clip_id']:<18}{row['steps']:>6}{len(row['snippets']):>9}{shift:>14}"
-            f"{row['skating_mm_per_step']:>16.1f}{row['clearance_mm']:>13.1f}"
+            f"{row['clip_id']:<16}{row['steps']:>6}{len(row['snippets']):>9}{shift:>17}"
+            f"{row['skating_mm_per_step']:>17.1f}{row['clearance_mm']:>14.1f}"
         )
     print(f"wrote {len(rows)} clips to {out}; report in {report_path(out)}")
 
