@@ -1,4 +1,4 @@
-"""A clip's features from the walker's joint positions, by forward kinematics of the V2020 walker."""
+"""A clip's features from the walker's joint positions (forward kinematics of the V2020 walker), and back."""
 
 from __future__ import annotations
 
@@ -49,3 +49,15 @@ def clip_from_qpos(walker: WalkerModel, clip_id: str, qpos: np.ndarray, dt: floa
         joints_velocity=qvel[:, walker.mocap_dof],
         **{name: np.array(values) for name, values in features.items()},
     )
+
+
+def clip_qpos(walker: WalkerModel, clip: Clip) -> np.ndarray:
+    """The walker's ``(num_steps, nq)`` positions of a clip: free joint, then the 56 hinges at their addresses.
+
+    The inverse of :func:`clip_from_qpos` for the positions.
+    """
+    qpos = np.zeros((clip.num_steps, walker.model.nq))
+    qpos[:, 0:3] = clip.position
+    qpos[:, 3:7] = clip.quaternion
+    qpos[:, walker.mocap_qpos] = clip.joints
+    return qpos

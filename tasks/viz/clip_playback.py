@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from tasks.clips.format import Clip, read_clip
+from tasks.clips.kinematics import clip_qpos
 from tasks.walker import WalkerModel, build_walker
 
 
@@ -33,14 +34,13 @@ class KinematicClipEnv(gym.Env):
         self.clip = clip
         self.walker = walker or build_walker()
         self.data = self.walker.new_data()
+        self._qpos = clip_qpos(self.walker, clip)
         self.observation_space = gym.spaces.Box(-np.inf, np.inf, shape=(1,), dtype=np.float64)
         self.action_space = gym.spaces.Box(-1.0, 1.0, shape=(self.walker.num_joints,), dtype=np.float32)
         self._frame = 0
 
     def _pose(self, frame: int) -> np.ndarray:
-        self.data.qpos[0:3] = self.clip.position[frame]
-        self.data.qpos[3:7] = self.clip.quaternion[frame]
-        self.data.qpos[self.walker.mocap_qpos] = self.clip.joints[frame]
+        self.data.qpos[:] = self._qpos[frame]
         mujoco.mj_kinematics(self.walker.model, self.data)
         return np.array([float(frame)])
 

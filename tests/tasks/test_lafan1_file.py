@@ -33,7 +33,7 @@ from tasks.clips.importers.resample import resample
 from tasks.clips.importers.retarget_ik import body_poses as walker_body_poses
 from tasks.clips.importers.trajectory import JointTrajectory, MotionImportError
 from tasks.clips.kinematics import clip_from_qpos
-from tasks.walker import CONTROL_TIMESTEP, WalkerModel, build_walker
+from tasks.walker import CONTROL_TIMESTEP, WalkerModel
 from tests.motion_files import LAFAN1_JOINTS, LAFAN1_UNIT, Y_UP, write_lafan1_bvh
 
 AMC = Path(__file__).parent / "data" / "cmu" / "09_11.amc"
@@ -87,11 +87,6 @@ FK_TOLERANCE_M = 1e-6
 EXACT_MEAN_MM, EXACT_MAX_MM = 0.02, 0.1
 # A body the uncarried hinges move may miss by what they move it (plus this), no more.
 DISPLACED_MARGIN_MM = 0.1
-
-
-@pytest.fixture(scope="module")
-def walker() -> WalkerModel:
-    return build_walker()
 
 
 @pytest.fixture(scope="module")

@@ -16,6 +16,7 @@ from tasks.clips.importers.floor import lowest_foot_points
 from tasks.clips.importers.pipeline import clip_id_for, import_clip_file, import_motion, report_path
 from tasks.clips.importers.resample import END_TRIM_STEPS, resample, resampled_length
 from tasks.clips.importers.trajectory import MotionImportError
+from tasks.clips.kinematics import clip_qpos
 from tasks.clips.snippets import mocapact_snippets
 
 DATA = Path(__file__).parent / "data" / "cmu"
@@ -68,9 +69,7 @@ def test_a_real_trial_imports_with_mocapacts_snippets_and_its_feet_on_the_floor(
     clip = read_clip(out, "CMU_009_11")
     assert clip.num_steps == 42 and clip.dt == pytest.approx(0.03)
     assert tuple(clip_import.snippets) == mocapact_snippets()["CMU_009_11"]
-    qpos = np.zeros((clip.num_steps, walker.model.nq))
-    qpos[:, 0:3], qpos[:, 3:7], qpos[:, walker.mocap_qpos] = clip.position, clip.quaternion, clip.joints
-    soles = lowest_foot_points(walker, qpos)[..., 2]
+    soles = lowest_foot_points(walker, clip_qpos(walker, clip))[..., 2]
     assert soles.min() >= -1e-9  # no sole below the floor ...
     assert soles.min(axis=1).min() < 1e-6  # ... and a standing foot touches it
     report = json.loads(report_path(out).read_text())["clips"][0]
@@ -154,3 +153,11 @@ def test_a_bvh_of_another_skeleton_needs_a_joint_map(tmp_path, walker):
     renamed.write_text(bvh.read_text().replace("LeftUpLeg", "L_Thigh"))
     with pytest.raises(MotionImportError, match=r"other\.bvh.*joint map"):
         import_motion([renamed], walker=walker, progress=False)
+
+
+def test_a_cut_cmu_trial_under_its_cmu_name_is_refused_with_the_rename_advice(tmp_path, walker):
+    lines = AMC.read_text().splitlines()
+    cut = tmp_path / "09_11.amc"  # the name of the whole trial, 120 of its 165 frames
+    cut.write_text("\n".join(lines[: lines.index("121")]) + "\n")
+    with pytest.raises(MotionImportError, match=r"09_11\.amc imports as CMU_009_11, .*with 30 steps.*has 42 .*Rename"):
+        import_motion([cut], walker=walker, progress=False)

@@ -22,7 +22,7 @@ from tasks.clips.importers.retarget import (
 )
 from tasks.clips.importers.retarget_ik import body_poses
 from tasks.clips.importers.trajectory import JointTrajectory, MotionImportError
-from tasks.walker import WalkerModel, build_walker
+from tasks.walker import WalkerModel
 
 DATA = Path(__file__).parent / "data" / "cmu"
 AMC = DATA / "09_11.amc"
@@ -155,11 +155,6 @@ def _offset_matrices(joint_map: JointMap) -> np.ndarray:
 
 
 # Fixtures -------------------------------------------------------------------------------------------
-
-
-@pytest.fixture(scope="module")
-def walker() -> WalkerModel:
-    return build_walker()
 
 
 @pytest.fixture(scope="module")

@@ -5,19 +5,12 @@ import numpy as np
 import pytest
 
 from tasks.clips.format import list_clips, read_clip
+from tasks.clips.kinematics import clip_qpos
 from tasks.clips.synthetic.library import SYNTHETIC_CLIPS, generate_clip, recipe
 from tasks.walker import CONTROL_TIMESTEP
 
 WALKS = ["SYN_walk_slow", "SYN_walk_fast", "SYN_turn_left", "SYN_turn_right", "SYN_walk_backward"]
 ON_FLOOR = 1e-3  # a foot whose lowest point is this close to the floor is standing on it
-
-
-def qpos_of(clip, walker):
-    qpos = np.zeros((clip.num_steps, walker.model.nq))
-    qpos[:, 0:3] = clip.position
-    qpos[:, 3:7] = clip.quaternion
-    qpos[:, walker.mocap_qpos] = clip.joints
-    return qpos
 
 
 def sole_points(walker, data, side):
@@ -46,7 +39,7 @@ def foot_tracks(clip_library, walker):
         clip = read_clip(clip_library, clip_id)
         heights = {"l": [], "r": []}
         ankles = {"l": [], "r": []}
-        for qpos in qpos_of(clip, walker):
+        for qpos in clip_qpos(walker, clip):
             data.qpos[:] = qpos
             mujoco.mj_kinematics(walker.model, data)
             for side in "lr":
@@ -143,7 +136,7 @@ def test_features_are_forward_kinematics_of_the_walker(clip_library, walker):
     for clip_id in ("SYN_squat", "SYN_turn_left"):
         clip = read_clip(clip_library, clip_id)
         for frame in range(0, clip.num_steps, 37):
-            data.qpos[:] = qpos_of(clip, walker)[frame]
+            data.qpos[:] = clip_qpos(walker, clip)[frame]
             mujoco.mj_forward(walker.model, data)
             np.testing.assert_allclose(
                 clip.body_positions[frame], data.xpos[walker.tracking_bodies].ravel(), atol=1e-12

@@ -17,10 +17,6 @@ import csv
 import re
 from pathlib import Path
 
-import numpy as np
-
-from tasks.clips.format import Clip
-
 NOT_LOCOMOTION = ("basketball", "dance", "jumping jacks", "soccer")
 """Descriptions of trials left out: ball games, dances and exercise routines."""
 
@@ -57,8 +53,10 @@ def main() -> None:
     args = parser.parse_args()
 
     from tasks.clips.importers.pipeline import clip_id_for, import_motion
+    from tasks.clips.kinematics import clip_qpos
     from tasks.clips.real.library import write_package_file
     from tasks.clips.snippets import mocapact_snippets
+    from tasks.walker import build_walker
 
     listed = mocapact_snippets()
     with args.index.open() as handle:
@@ -70,30 +68,19 @@ def main() -> None:
     }
     paths = [args.amc_folder / f"{trial}.amc" for trial in sorted(chosen)]
     skeletons = sorted({args.amc_folder / f"{trial.split('_')[0]}.asf" for trial in chosen})
-    imported = import_motion([*skeletons, *paths])
+    walker = build_walker()
+    imported = import_motion([*skeletons, *paths], walker=walker)
     rows = []
     for path, clip in zip(paths, imported, strict=True):
         description = chosen[path.stem]
         text = {"kind": kind_of(description), "description": description, "source": clip.source}
-        qpos = _qpos(clip.clip)
+        qpos = clip_qpos(walker, clip.clip)
         rows.append((clip.clip.clip_id, qpos, clip.clip.dt, text, clip.floor.as_dict()))
     write_package_file(args.out, args.name, rows)
     steps = sum(len(r[1]) for r in rows)
     print(
         f"{args.out}: {len(rows)} clips, {steps} steps ({steps * 0.03 / 60:.1f} min), {args.out.stat().st_size:,} bytes"
     )
-
-
-def _qpos(clip: Clip) -> np.ndarray:
-    """The walker positions ``(steps, nq)`` of an imported clip."""
-    from tasks.walker import build_walker
-
-    walker = build_walker()
-    qpos = np.zeros((clip.num_steps, walker.model.nq))
-    qpos[:, 0:3] = clip.position
-    qpos[:, 3:7] = clip.quaternion
-    qpos[:, walker.mocap_qpos] = clip.joints
-    return qpos
 
 
 if __name__ == "__main__":

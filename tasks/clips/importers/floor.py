@@ -69,9 +69,8 @@ def lowest_foot_points(walker: WalkerModel, qpos: np.ndarray) -> np.ndarray:
     model = walker.model
     data = walker.new_data()
     feet = {}
-    for side in (0, 1):
-        prefix = "walker/l" if side == 0 else "walker/r"
-        bodies = {walker.body_id(f"{prefix[7:]}foot"), walker.body_id(f"{prefix[7:]}toes")}
+    for side, letter in enumerate("lr"):
+        bodies = {walker.body_id(f"{letter}foot"), walker.body_id(f"{letter}toes")}
         feet[side] = [int(g) for g in walker.foot_geoms if model.geom_bodyid[g] in bodies]
     points = np.zeros((len(qpos), 2, 3))
     for t, pose in enumerate(qpos):

@@ -216,15 +216,20 @@ def _read_bvh(path: Path, clip_id: str, walker: WalkerModel, joint_map: str | os
 
 def _to_clip(trajectory: JointTrajectory, walker: WalkerModel) -> ImportedClip:
     stepped = resample(trajectory, CONTROL_TIMESTEP)
+    snippets = _snippets(trajectory, stepped.num_frames)  # refused before any further work
     qpos, floor = put_feet_on_floor(walker, stepped.qpos(walker), CONTROL_TIMESTEP)
     clip = clip_from_qpos(walker, trajectory.clip_id, qpos, CONTROL_TIMESTEP, f"imported from {trajectory.source}")
+    return ImportedClip(clip=clip, source=trajectory.source, floor=floor, snippets=snippets)
+
+
+def _snippets(trajectory: JointTrajectory, steps: int) -> tuple[SnippetId, ...]:
+    """The clip's snippets; a CMU trial's id on a recording that is not that whole trial is refused."""
     try:
-        snippets = tuple(snippets_of_clip(clip.clip_id, clip.num_steps))
+        return tuple(snippets_of_clip(trajectory.clip_id, steps))
     except ValueError:
-        expected = mocapact_snippets()[clip.clip_id][-1].end
+        expected = mocapact_snippets()[trajectory.clip_id][-1].end
         raise MotionImportError(
-            f"{trajectory.source} imports as {clip.clip_id}, a CMU trial's id, with {clip.num_steps} steps, but that "
+            f"{trajectory.source} imports as {trajectory.clip_id}, a CMU trial's id, with {steps} steps, but that "
             f"trial has {expected} in the CMU 2020 file (where MoCapAct's snippets end): this recording is not the "
             "whole trial. Rename the file (e.g. to a name without the SS_TT form) to import it under another id"
         ) from None
-    return ImportedClip(clip=clip, source=trajectory.source, floor=floor, snippets=snippets)
