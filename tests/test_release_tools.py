@@ -66,4 +66,5 @@ def test_expert_status_reads_where_a_run_stands_and_its_final_evaluation(tmp_pat
     assert row["finished"] and row["final"]["episodes"] == 1000 and row["final"]["success"] == 0.93412
     waiting = tmp_path / "CMU_016_22-0-82"
     waiting.mkdir()
-    assert expert_status.run_status(waiting) == {**expert_status.run_status(waiting), "steps": 0, "finished": False}
+    not_started = expert_status.run_status(waiting)
+    assert not_started["steps"] == 0 and not not_started["finished"] and not_started["last_length"] is None
