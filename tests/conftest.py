@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -64,3 +65,22 @@ def read_only_folder(tmp_path: Path) -> Iterator[Path]:
         yield folder
     finally:
         subprocess.run(["umount", "-l", str(folder)], check=False)
+
+
+@pytest.fixture(scope="session")
+def built_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The documentation site built once per test session with warnings as errors; the build's folder of HTML.
+
+    A failed build fails every test that reads the site, with Sphinx's own messages.
+    """
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    html = tmp_path_factory.mktemp("site") / "html"
+    result = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html", str(docs), str(html)],
+        capture_output=True,
+        text=True,
+        cwd=docs.parent,
+    )
+    if result.returncode != 0:
+        pytest.fail(f"the documentation site does not build:\n{result.stderr[-4000:]}")
+    return html
