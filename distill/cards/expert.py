@@ -136,7 +136,7 @@ def expert_card(context: CardContext) -> CardPage:
     runtime = runtime_lines("`distill.experts.loading.load_expert`", WALKER, light=False)
     runtime.append(
         f"- **ONNX**: `mocap-hierarchy expert export {context.shipped or 'EXPERT'} --onnx OUT.onnx` writes its mean "
-        f"action as one graph; see {links.page('deployment', 'guides/deployment.md')}."
+        f"action as one graph (the `export` extra); see {links.page('deployment', 'guides/deployment.md')}."
     )
     limitations = [
         *context.notes(),
