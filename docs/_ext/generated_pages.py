@@ -83,9 +83,53 @@ def command_parsers() -> list[tuple[str, argparse.ArgumentParser]]:
     return found
 
 
+USAGE_PART = re.compile(r"\(.*?\)+(?=\s|$)|\[.*?\]+(?=\s|$)|\S+")
+"""One part of a usage line as argparse wraps them: a group in brackets or parentheses, or a word."""
+
+
+def fitted_usage(help_text: str, command: str, width: int = HELP_WIDTH) -> str:
+    """``help_text`` with its usage lines rewrapped at a short indent if argparse's own are wider than ``width``.
+
+    argparse indents a wrapped usage line under the end of the command's name, which leaves a long
+    subcommand's flags too little room; here they follow the name and continue two spaces in.
+    """
+    usage, rest = help_text.split("\n\n", 1) if "\n\n" in help_text else (help_text, "")
+    if max(len(line) for line in usage.splitlines()) <= width:
+        return help_text
+    head = f"usage: {command}"
+    lines = [head]
+    for part in USAGE_PART.findall(" ".join(usage.split()).removeprefix(head)):
+        if lines[-1].strip() and len(lines[-1]) + 1 + len(part) > width:
+            lines.append(" ")
+        lines[-1] += f" {part}"
+    return "\n".join(lines) + (f"\n\n{rest}" if rest else "")
+
+
+def home_named(text: str) -> str:
+    """``text`` with the building machine's home folder written ``~``."""
+    home = Path.home()
+    return text.replace(f"{home}/", "~/") if len(home.parts) > 1 else text
+
+
 def cli_page() -> str:
-    """The command-line reference: each command's ``--help``, exactly as the program prints it."""
+    """The command-line reference: each command's ``--help``, as the program prints it.
+
+    Printed for a terminal of :data:`HELP_WIDTH` columns, with the default cache folder (whatever
+    ``$MOCAP_HIERARCHY_CACHE`` is while the site builds), long usage lines rewrapped by :func:`fitted_usage`
+    and the home folder written ``~``.
+    """
+    from tasks.clips.sources import CACHE_ENV
+
     os.environ["COLUMNS"] = str(HELP_WIDTH)
+    cache = os.environ.pop(CACHE_ENV, None)
+    try:
+        return home_named(_cli_page())
+    finally:
+        if cache is not None:
+            os.environ[CACHE_ENV] = cache
+
+
+def _cli_page() -> str:
     lines = [
         "# Command line",
         "",
@@ -101,7 +145,7 @@ def cli_page() -> str:
         if description and command != "mocap-hierarchy":
             lines += [description, ""]
         parser.prog = command
-        lines += ["```text", parser.format_help().rstrip(), "```", ""]
+        lines += ["```text", fitted_usage(parser.format_help().rstrip(), command), "```", ""]
     return "\n".join(lines)
 
 

@@ -29,9 +29,9 @@ mocap-hierarchy command that uses the network: nothing else in the library downl
 anything, and everything else works offline once the files are here.
 
 artifacts:
-  cmu                   the CMU 2020 clip file ({CMU_2020_BYTES:,} bytes) from dm_control's storage
-                        bucket, into {default_cmu_folder()} (or --out), where dm_control and
-                        `clips list --cmu` find it
+  cmu                   the CMU 2020 clip file ({CMU_2020_BYTES:,} bytes) from dm_control's
+                        storage bucket, into {default_cmu_folder()} (or --out), where
+                        dm_control and `clips list --cmu` find it
 """ + "".join(f"  {a.name:<22}{a.description}\n" for a in ARTIFACTS.values())
 
 
@@ -39,13 +39,13 @@ def _epilog() -> str:
     from mocap_hierarchy.download import CMU_URL_ENV, default_out
 
     return f"""\
-Hub artifacts go to --out (default {default_out()}): `multiclip` writes
-mocapact_decoder.safetensors there, the others extract into a folder named after them
-(experts/, small_dataset/, ...). Transfers resume (the CMU file across runs from its .part
-file; Hub files within a run), every file is checked against its published sha256 and
-size, and download_manifest.json in --out records finished archives, so running the
-command again skips them. Environment: HF_ENDPOINT (another Hub), HF_TOKEN,
-{CMU_URL_ENV} (another URL for the CMU file)."""
+Hub artifacts go to --out (default {default_out()}):
+`multiclip` writes mocapact_decoder.safetensors there, the others extract into a folder
+named after them (experts/, small_dataset/, ...). Transfers resume (the CMU file across
+runs from its .part file; Hub files within a run), every file is checked against its
+published sha256 and size, and download_manifest.json in --out records finished
+archives, so running the command again skips them. Environment: HF_ENDPOINT (another
+Hub), HF_TOKEN, {CMU_URL_ENV} (another URL for the CMU file)."""
 
 
 def _build_download(parser: argparse.ArgumentParser) -> None:

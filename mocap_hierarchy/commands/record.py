@@ -47,7 +47,13 @@ def add_commands(subparsers: LazySubParsers) -> None:
     models = subparsers.add_parser(
         "models", help="list every artifact shipped with the library (name, kind, file): the names commands take"
     )
-    models.add_argument("--kind", default=None, choices=KINDS, help="only the artifacts of this kind")
+    models.add_argument(
+        "--kind",
+        default=None,
+        choices=KINDS,
+        metavar="KIND",
+        help=f"only the artifacts of this kind: {', '.join(KINDS)}",
+    )
     models.set_defaults(handler=_models)
 
 
