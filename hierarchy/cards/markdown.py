@@ -17,6 +17,7 @@ from typing import Any
 
 from foundation.fingerprints import file_sha256
 from foundation.json_fields import parse_json, require_mapping
+from foundation.shell_lines import wrapped_command
 from hierarchy.cards.model_card import CARD_KEY, ModelCardError
 
 SECTIONS = (
@@ -421,5 +422,5 @@ def _range(entry: Mapping[str, Any]) -> str:
 
 
 def commands_block(commands: Sequence[str]) -> list[str]:
-    """A ``bash`` block of ``commands``, or nothing."""
-    return ["```bash", *commands, "```"] if commands else []
+    """A ``bash`` block of ``commands``, each within the documentation's code column (:func:`wrapped_command`)."""
+    return ["```bash", *(line for command in commands for line in wrapped_command(command)), "```"] if commands else []
