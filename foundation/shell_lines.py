@@ -57,15 +57,33 @@ def split_comment(line: str) -> tuple[str, str]:
     return line.rstrip(), ""
 
 
-def _groups(words: list[str]) -> list[list[str]]:
-    """The words in the groups a line may break between: the command, then each flag with its values."""
-    groups: list[list[str]] = []
+def _segments(words: list[str]) -> list[list[str]]:
+    """The words between shell operators (``&&``, ``|`` ...), each part with the operator that ends it."""
+    segments: list[list[str]] = [[]]
     for word in words:
-        starts = not groups or FLAG.match(word) or groups[-1][-1] in OPERATORS
-        if starts:
+        segments[-1].append(word)
+        if word in OPERATORS:
+            segments.append([])
+    return [segment for segment in segments if segment]
+
+
+def _is_flag(word: str) -> bool:
+    return bool(FLAG.match(word.removeprefix("[")))
+
+
+def _groups(words: list[str]) -> list[list[str]]:
+    """The words in the groups a line may break between: the command, then each flag with its values.
+
+    An optional part in brackets (``[--workers 4]``, the documentation's notation) stays one group.
+    """
+    groups: list[list[str]] = []
+    optional = 0
+    for word in words:
+        if not groups or (not optional and _is_flag(word)):
             groups.append([word])
         else:
             groups[-1].append(word)
+        optional = max(0, optional + word.count("[") - word.count("]"))
     return groups
 
 
@@ -91,28 +109,35 @@ def broken_word(word: str, first: int, rest: int) -> list[str]:
 def wrapped_command(command: str, width: int = WIDTH, indent: str = "    ") -> list[str]:
     r"""``command`` as lines of at most ``width`` characters that a shell reads as the same command.
 
-    A command that fits is returned as it is. Otherwise its trailing comment goes on ``#`` lines above
-    it, and the command breaks before a flag (or after ``&&``, ``|`` ...), each line but the last ending
-    in `` \`` and each but the first starting with ``indent``. A flag's values break only when the flag
-    and its values do not fit on a line of their own, and a word wider than a line after its commas
+    A command that fits is returned as it is, or with its trailing comment two spaces after it. Otherwise
+    the comment goes on ``#`` lines above it, and the command breaks after ``&&``, ``|`` ... or before
+    a flag (an optional ``[--flag VALUE]`` kept whole), each line but the last ending
+    in `` \`` and each but the first starting with ``indent``. A flag with values too many for a line
+    breaks between them (never before the first); a word wider than a line breaks after its commas
     (:func:`broken_word`).
     """
     if len(command) <= width:
         return [command]
     code, comment = split_comment(command)
+    if comment and len(code) + len(comment) + 4 <= width:
+        return [f"{code}  # {comment}"]
     lines = [f"# {part}" for part in textwrap.wrap(comment, width - 2, break_on_hyphens=False)]
     current = ""
-    for group in _groups(shell_words(code)):
-        pieces = [" ".join(group)]
-        if len(indent) + len(pieces[0]) + 2 > width:
-            pieces = group
-        for piece in pieces:
-            candidate = f"{current} {piece}" if current else piece
-            if current and len(candidate) + 2 > width:
-                lines.append(f"{current} \\")
-                candidate = f"{indent}{piece}"
-            if len(candidate) + 2 > width:
-                *whole, candidate = broken_word(candidate, width, width - 2)
-                lines += whole
-            current = candidate
+    for segment in _segments(shell_words(code)):
+        fits = len(indent) + len(" ".join(segment)) + 2 <= width  # kept whole: a break after && reads best
+        for group in [segment] if fits else _groups(segment):
+            pieces = [" ".join(group)]
+            if len(indent) + len(pieces[0]) + 2 > width:  # too many values for a line: the flag keeps its first
+                pair = " ".join(group[:2])
+                paired = _is_flag(group[0]) and len(indent) + len(pair) + 2 <= width
+                pieces = [pair, *group[2:]] if paired else group
+            for piece in pieces:
+                candidate = f"{current} {piece}" if current else piece
+                if current and len(candidate) + 2 > width:
+                    lines.append(f"{current} \\")
+                    candidate = f"{indent}{piece}"
+                if len(candidate) + 2 > width:
+                    *whole, candidate = broken_word(candidate, width, width - 2)
+                    lines += whole
+                current = candidate
     return [*lines, current]

@@ -111,11 +111,15 @@ def check_python_imports(files: Iterable[Path]) -> list[str]:
 
 
 def command_lines(files: Iterable[Path], program: str = "mocap-hierarchy") -> list[tuple[Path, str]]:
-    """Every ``program`` invocation of the ``bash`` blocks, continuation lines joined, ``# comments`` dropped."""
+    """Every ``program`` invocation of the ``bash`` blocks, continuation lines joined, ``# comments`` dropped.
+
+    Lines are joined as a shell joins them: a backslash and the newline after it are removed, so a word
+    continued at the start of the next line stays one word.
+    """
     found = []
     for path in files:
         for block in code_blocks(path.read_text(), "bash"):
-            for line in re.sub(r"\\\n\s*", " ", block).splitlines():
+            for line in block.replace("\\\n", "").splitlines():
                 for part in re.split(r"&&|\|\||;|\|", line.split(" #")[0]):
                     words = part.strip().split()
                     while words and ("=" in words[0] and not words[0].startswith("-")):  # VAR=value prefixes

@@ -24,10 +24,22 @@ def arguments(script: str) -> list[str]:
     return subprocess.run(["bash", "-c", script], capture_output=True, text=True, check=True).stdout.splitlines()
 
 
-def test_a_command_that_fits_is_left_as_it_is():
-    assert wrapped_command("mocap-hierarchy quickstart  # the main job") == [
-        "mocap-hierarchy quickstart  # the main job"
+def test_a_command_that_fits_is_left_as_it_is_or_its_comment_moves_closer():
+    fits = "mocap-hierarchy quickstart  # the main job"
+    assert wrapped_command(fits) == [fits]
+    assert wrapped_command(fits.replace("  #", f"{' ' * 80}#")) == [fits]
+
+
+def test_breaks_fall_after_operators_and_outside_optional_parts():
+    chained = "python3 -m venv .venv && . .venv/bin/activate && pip install -c requirements.lock -e . && pytest"
+    assert wrapped_command(chained) == [
+        "python3 -m venv .venv && . .venv/bin/activate && \\",
+        "    pip install -c requirements.lock -e . && pytest",
     ]
+    optional = (
+        f"mocap-hierarchy rollout --experts {'e/' * 20} --out {'d/' * 30} [--n-start 10 --n-rsi 10] [--workers 4]"
+    )
+    assert "    [--n-start 10 --n-rsi 10] [--workers 4]" in wrapped_command(optional)
 
 
 @pytest.mark.skipif(shutil.which("bash") is None, reason="needs bash")
