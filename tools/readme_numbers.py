@@ -8,8 +8,12 @@ Measured here, in this order, from the current checkout:
 
 The quickstart's ``summary.json`` from that same fresh run is copied to
 ``docs/results/quickstart_summary.json``: the results page quotes its figures from there.
-The numbers, the machine (cores, CPU model, load average before and after, which tells
-a quiet machine from a shared one) and the commit go to ``docs/readme_numbers.json``;
+Its curves (``distill_loss.png``, ``velocity_control.png``) and its ``mocap-hierarchy report``
+go to ``docs/figures/`` (``quickstart_*.png``, ``report_quickstart/``), so the quickstart page
+shows the same run. The numbers, the machine (cores, CPU model, load average before and
+after, which tells a quiet machine from a shared one) and the date and commit of each
+measurement (``measured``; a skipped one keeps its earlier record) go to
+``docs/readme_numbers.json``;
 with ``--update-readme`` every ``<!-- measured:KEY -->VALUE<!-- /measured -->`` span of
 the README is rewritten from it, and so is every ``<!-- value: FILE KEY -->`` span of the
 results and quickstart pages that quotes one of the two files written here.
@@ -40,6 +44,7 @@ from quoted_values import refreshed  # tools/quoted_values.py, beside this scrip
 
 ROOT = Path(__file__).resolve().parents[1]
 NUMBERS = ROOT / "docs" / "readme_numbers.json"
+FIGURES = ROOT / "docs" / "figures"
 QUICKSTART_SUMMARY = ROOT / "docs" / "results" / "quickstart_summary.json"
 README = ROOT / "README.md"
 SPAN = re.compile(r"<!-- measured:(\w+) -->(.*?)<!-- /measured -->")
@@ -93,7 +98,7 @@ def update_readme(numbers: dict[str, float]) -> int:
     return changed
 
 
-PAGES_QUOTING = (ROOT / "docs" / "results.md", ROOT / "docs" / "getting-started" / "quickstart.md")
+PAGES_QUOTING = (README, ROOT / "docs" / "results.md", ROOT / "docs" / "getting-started" / "quickstart.md")
 """Pages whose ``<!-- value: FILE KEY -->`` spans quote the files this script writes."""
 
 
@@ -106,6 +111,13 @@ def update_quoted_values() -> int:
         page.write_text(text)
         changed += count
     return changed
+
+
+def copy_quickstart_figures(out: Path, cli: list[str]) -> None:
+    """The fresh quickstart's curves and its report into ``docs/figures/``, beside the summary they belong to."""
+    for name in ("distill_loss", "velocity_control"):
+        (FIGURES / f"quickstart_{name}.png").write_bytes((out / f"{name}.png").read_bytes())
+    timed_minutes([*cli, "report", str(out), "--out", str(FIGURES / "report_quickstart")], ROOT)
 
 
 def main() -> None:
@@ -138,6 +150,7 @@ def main() -> None:
             print(f"quickstart rerun: {numbers['quickstart_rerun_seconds']:.1f} s")
             QUICKSTART_SUMMARY.parent.mkdir(parents=True, exist_ok=True)
             QUICKSTART_SUMMARY.write_text((out / "summary.json").read_text())
+            copy_quickstart_figures(out, cli)
             if args.update_readme:  # before the test run, whose docs checks compare the pages with this summary
                 print(f"docs: {update_quoted_values()} quoted value(s) changed")
     if args.skip_tests and "tests_minutes" in earlier["numbers"]:
@@ -146,12 +159,12 @@ def main() -> None:
         remeasured.append("tests")
         numbers["tests_minutes"] = timed_minutes([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"], ROOT)
         print(f"tests: {numbers['tests_minutes']:.2f} min")
+    measured = dict(earlier.get("measured", {}))
+    measured.update({name: {"date": date.today().isoformat(), "commit": measured_at} for name in remeasured})
     record = {
         "numbers": {k: round(v, 2) for k, v in numbers.items()},
         "machine": {**before, "load_average_after": machine()["load_average"]},
-        "commit": measured_at,
-        "date": date.today().isoformat(),
-        "remeasured": remeasured,  # the others kept from the earlier record
+        "measured": measured,  # the date and commit of each measurement; a skipped one keeps its earlier record
     }
     NUMBERS.write_text(json.dumps(record, indent=2) + "\n")
     print(f"wrote {NUMBERS}")

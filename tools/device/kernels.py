@@ -1,6 +1,6 @@
 """The batched engine's Warp kernels compiled here for a GPU, as a kernel cache Warp finds there.
 
-A cold compile of the engine's CUDA modules costs minutes of a lent GPU's time. ``compile`` builds
+A cold compile of the engine's CUDA modules costs minutes of a GPU allocation. ``compile`` builds
 them here (no GPU needed: Warp's NVRTC compiles for any architecture it lists) into a folder laid
 out as Warp's own kernel cache; ``check`` runs on the GPU and says, module by module, whether Warp
 took it from that cache or compiled it afresh.

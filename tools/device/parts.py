@@ -1,10 +1,10 @@
-"""A large file cut into parts that each fit one device call, and put back together with every byte checked.
+"""A large file cut into parts that each fit a size-limited transfer, and put back together with every byte checked.
 
-A lent GPU machine receives, per call, this repository's working tree plus carried folders, 64 MiB
-in all; the staged Python site for the batched engine is larger. :func:`split` cuts a file into
+Some clusters limit the size of one file transfer to a GPU node; the staged Python site for the
+batched engine is larger than many such limits. :func:`split` cuts a file into
 ``part-000``, ``part-001``, ... of at most ``part_size`` bytes beside a ``manifest.json`` that names
-the whole file, its size and SHA-256, and each part's size and SHA-256. The parts can travel over
-several calls into one folder on the (warm) machine; :func:`join` checks each part and the whole
+the whole file, its size and SHA-256, and each part's size and SHA-256. The parts can travel in
+several transfers into one folder on the node; :func:`join` checks each part and the whole
 before it writes the file, so a part that is missing, cut short or altered is named, not unpacked.
 
 Usage::

@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 STAGED = ("mujoco", "warp", "mujoco_warp", "dm_control", "labmaze", "gymnasium", "git", "etils")
 STAGED_ON_TORCH = ("tensordict", "rsl_rl", "stable_baselines3")
-"""Staged packages that import torch: the lent machine has it; a rehearsal here without it skips them."""
+"""Staged packages that import torch: a GPU node has it; a rehearsal here without it skips them."""
 
 
 def imports() -> dict:
@@ -27,7 +27,7 @@ def imports() -> dict:
 
 
 def warp_devices() -> dict:
-    """Warp starts and lists its devices (the CPU one here; ``cuda:0`` on the lent machine)."""
+    """Warp starts and lists its devices (the CPU one here; ``cuda:0`` on a GPU node)."""
     import warp
 
     warp.init()

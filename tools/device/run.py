@@ -1,10 +1,10 @@
-"""One call on a lent GPU machine: assemble the staged site, record the versions, run the checks by value.
+"""One command on an offline GPU node: assemble the staged site, record the versions, run the checks by value.
 
-    python3 tools/device/run.py --staged DIR --out "$OUT" [--budget-seconds 540] [--device cuda] [--only STAGE ...]
+    python3 tools/device/run.py --staged DIR --out results/ [--budget-seconds 540] [--device cuda] [--only STAGE ...]
     python tools/device/run.py --site .venv/lib/python3.11/site-packages --out /tmp/out --rehearsal  # no GPU
 
 Assembly joins and verifies the staged site's parts (``tools/device/parts.py join``), extracts
-them to /tmp/mh-site (kept for a next call on a warm machine) and copies the Warp kernel
+them to /tmp/mh-site (kept for a next command on the same node) and copies the Warp kernel
 cache packed with them (``warp-kernel-cache/``, or ``--kernels DIR``) to /tmp/mh-warp-cache
 (``WARP_CACHE_PATH``); ``--site`` names an extracted site instead. Then
 each stage (versions, then the checks in order of value: parity, speed, ppo, expert) runs in a

@@ -1,11 +1,11 @@
-"""Stages what a lent GPU machine lacks for the batched engine: a slim Python 3.12 site, packed into parts.
+"""Stages what an offline GPU node lacks for the batched engine: a slim Python 3.12 site, packed into parts.
 
-The lent machine has Python 3.12 with torch, numpy, h5py, scipy, lxml, protobuf and more, but not
-MuJoCo, MuJoCo Warp, Warp, dm_control, Gymnasium, stable-baselines3, rsl_rl or tensordict, and it
-cannot fetch them. This tool, run here (where the package registries can be reached):
+The node is assumed to have Python 3.12 with torch, numpy, h5py, scipy, lxml, protobuf and more, but
+not MuJoCo, MuJoCo Warp, Warp, dm_control, Gymnasium, stable-baselines3, rsl_rl or tensordict, and no
+way to fetch them. This tool, run here (where the package registries can be reached):
 
 1. ``wheels``: downloads the cp312 manylinux wheels of :data:`MISSING` at the versions
-   ``requirements.lock`` pins (no dependencies beyond those named: the rest is on the machine);
+   ``requirements.lock`` pins (no dependencies beyond those named: the rest is on the node);
 2. ``site``: installs them with ``python3.12 -m pip install --target`` into a site folder;
 3. ``prune``: removes what a GPU run never loads (:data:`PRUNED`: Warp's CPU compiler, dm_control's
    soccer, dog and fly assets, MuJoCo's experimental viewers, Warp's tests and examples, byte code); ``--for rehearsal``
@@ -65,7 +65,7 @@ MISSING = (
     "gitdb",
     "smmap",
 )
-"""What the batched engine, rsl_rl training, SB3's expert files and evaluation import that the lent machine lacks."""
+"""What the batched engine, rsl_rl training, SB3's expert files and evaluation import that an offline GPU node lacks."""
 
 PRUNED = (
     "warp/bin/warp-clang.so",
@@ -207,7 +207,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=ROOT / ".stage" / "device")
     parser.add_argument("--for", dest="purpose", choices=("device", "rehearsal"), default="device")
     parser.add_argument("--python", default=None, help="the Python 3.12 that installs the site (default: found)")
-    parser.add_argument("--part-mib", type=float, default=40.0, help="largest part (a call carries 64 MiB in all)")
+    parser.add_argument("--part-mib", type=float, default=40.0, help="largest part, for transfers with a size limit")
     parser.add_argument("--wheels", type=Path, default=ROOT / ".stage" / "wheels", help="wheel cache")
     parser.add_argument("--no-kernels", action="store_true", help="stage no kernel cache (the GPU compiles them)")
     args = parser.parse_args()
