@@ -51,11 +51,13 @@ def test_readme_timings_are_the_measured_ones():
     assert {"quickstart_minutes", "tests_minutes"} <= set(numbers)
     for key, text in spans:
         assert text == (f"{numbers[key]:.0f}" if key.endswith("_seconds") else f"{numbers[key]:.1f}"), key
-    assert record["machine"]["cores"] >= 1 and record["commit"]
-    known = subprocess.run(
-        ["git", "cat-file", "-e", record["commit"].removesuffix("+changes")], cwd=ROOT, capture_output=True
-    )
-    assert known.returncode == 0 or not (ROOT / ".git").exists(), f"commit {record['commit']} is not in this history"
+    assert record["machine"]["cores"] >= 1
+    assert set(record["measured"]) == {"quickstart", "tests"}  # the date and commit of each measurement
+    for name, measured in record["measured"].items():
+        assert re.fullmatch(r"\d{4}-\d{2}-\d{2}", measured["date"]), name
+        commit = measured["commit"].removesuffix("+changes")
+        known = subprocess.run(["git", "cat-file", "-e", commit], cwd=ROOT, capture_output=True)
+        assert known.returncode == 0 or not (ROOT / ".git").exists(), f"{name}: commit {commit} is not in this history"
 
 
 # ------------------------------------------------------------------------------------------------ the checks
