@@ -42,6 +42,7 @@ class KinematicClipEnv(gym.Env):
     def _pose(self, frame: int) -> np.ndarray:
         self.data.qpos[:] = self._qpos[frame]
         mujoco.mj_kinematics(self.walker.model, self.data)
+        mujoco.mj_comPos(self.walker.model, self.data)  # the subtree centres a tracking camera follows
         return np.array([float(frame)])
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):

@@ -82,5 +82,7 @@ def test_a_clip_recorded_kinematically_poses_the_walker_at_each_frame(real_clips
     for _ in range(10):
         env.step(None)
     np.testing.assert_allclose(env.data.xpos[walker.tracking_bodies].ravel(), clip.body_positions[10], atol=1e-12)
+    root = walker.model.body_rootid[walker.tracking_bodies[0]]  # a tracking camera follows its subtree's centre
+    assert np.linalg.norm(env.data.subtree_com[root][:2] - env.data.xpos[root][:2]) < 0.3
     result = record_clip(NAME, "CMU_016_22", tmp_path / "walk.rrd")
     assert result["steps"] == clip.num_steps - 1 and (tmp_path / "walk.rrd").stat().st_size > 10_000
