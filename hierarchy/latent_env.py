@@ -74,6 +74,37 @@ def _checked_latent(z: np.ndarray, space: gym.spaces.Box) -> np.ndarray:
     return np.clip(z, space.low, space.high)
 
 
+def _non_finite_cause(decoder: LatentDecoder, flat: np.ndarray, z: np.ndarray) -> str:
+    """Why the decoder's joint targets are not finite, for the error a user reads."""
+    flat, z = np.atleast_2d(flat), np.atleast_2d(z)
+    bad_rows = np.flatnonzero(~np.isfinite(flat).all(axis=1) | ~np.isfinite(z).all(axis=1)).tolist()
+    offsets = np.cumsum([0, *decoder.spec.observation_sizes.values()])
+    keys = list(decoder.spec.observation_sizes)
+    if not np.isfinite(flat).all():
+        names = sorted(
+            {keys[np.searchsorted(offsets, i, side="right") - 1] for i in np.flatnonzero(~np.isfinite(flat).all(0))}
+        )
+        return f"the observations {names} are not finite in environments {bad_rows}: the simulation became unstable"
+    if not np.isfinite(z).all():
+        return f"the latent prior's output is not finite in environments {bad_rows}"
+    mean, std = decoder.observation_mean.cpu().numpy(), decoder.observation_std.cpu().numpy()
+    standardised = np.abs((flat - mean) / std).max(axis=0)
+    worst = int(np.argmax(standardised))
+    key = keys[np.searchsorted(offsets, worst, side="right") - 1]
+    return (
+        f"its inputs are finite, but observation {key!r} lies {standardised[worst]:.3g} standard deviations from "
+        "the decoder's training data, and the network overflowed"
+    )
+
+
+def _decoded(decoder: LatentDecoder, z: np.ndarray, flat: np.ndarray, low: np.ndarray, high: np.ndarray) -> np.ndarray:
+    """The decoder's joint targets for ``z``, clipped to the action space; a clear error when they are not finite."""
+    targets = decoder.decode_flat(flat, z)
+    if not np.isfinite(targets).all():
+        raise FloatingPointError(f"the decoder's joint targets are not finite: {_non_finite_cause(decoder, flat, z)}")
+    return np.clip(targets, low, high)
+
+
 class _Latents:
     """Turns a high-level action into the decoder's latent: itself, or a residual on the prior.
 
@@ -155,7 +186,7 @@ class LatentActionEnv(gym.Wrapper):
         for _ in range(self.steps_per_latent):
             flat = self.decoder.flatten(self._observation)
             z = self._latents(flat, action)
-            low_level = np.clip(self.decoder.decode_flat(flat, z), self._low, self._high)
+            low_level = _decoded(self.decoder, z, flat, self._low, self._high)
             observation, reward, terminated, truncated, info = self.env.step(low_level)
             self._observation = observation
             total += float(reward)
@@ -246,7 +277,7 @@ class LatentActionVecEnv(VecEnvWrapper):
         for _ in range(self.steps_per_latent):
             flat = self.decoder.flatten(self._observation)
             z = self._latents(flat, self._latent)
-            low_level = np.clip(self.decoder.decode_flat(flat, z), self._low, self._high)
+            low_level = _decoded(self.decoder, z, flat, self._low, self._high)
             observation, rewards, dones, infos = self.venv.step(low_level)
             assert isinstance(observation, dict)
             self._observation = observation

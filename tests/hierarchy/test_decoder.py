@@ -116,6 +116,23 @@ def test_latent_env_decodes_and_checks_inputs(walker):
     check_env(LatentActionEnv(tasks.make("go_to_target", max_steps=30), decoder))
 
 
+def test_joint_targets_that_are_not_finite_are_refused_with_their_cause():
+    decoder = small_decoder()
+    venv = LatentActionVecEnv(DummyVecEnv([lambda: tasks.make("velocity_control", max_steps=15)] * 2), decoder)
+    venv.reset()
+    key = next(iter(decoder.spec.observation_sizes))
+    venv._observation = {**venv._observation, key: venv._observation[key].copy()}  # an unstable simulation
+    venv._observation[key][1, 0] = np.nan
+    with pytest.raises(FloatingPointError, match=rf"observations \['{key}'\] are not finite in environments \[1\]"):
+        venv.step(np.zeros((2, 6), dtype=np.float32))
+    env = LatentActionEnv(tasks.make("velocity_control", max_steps=15), decoder)
+    env.reset(seed=0)
+    with torch.no_grad():  # finite inputs that overflow a float32 network
+        next(p for p in decoder.parameters() if p.ndim == 2).mul_(1e30)
+    with pytest.raises(FloatingPointError, match="standard deviations from the decoder's training data"):
+        env.step(np.zeros(6, dtype=np.float32))
+
+
 def test_decoder_that_does_not_fit_the_task_is_refused():
     spec = DecoderSpec({"walker/joints_pos": 56, "walker/made_up": 4}, latent_size=4, hidden_layers=(8,))
     decoder = LatentDecoder(spec, np.zeros(60), np.ones(60))

@@ -1,0 +1,84 @@
+#!/usr/bin/env bash
+# The real release after its experts (tools/release/cmu_locomotion_v1_experts.sh has finished all 24): packages the
+# experts as group cmu-locomotion-v1, rolls them out in the paper's layout, distils the multi-clip policy online with
+# a learned prior (the recipe that kept the most of its experts under the noisy protocol and stood longest on its
+# prior's samples on synthetic data: docs/experiments/2026-11-27-online-distillation.md), evaluates it on its own
+# snippets (deterministic and the paper's noisy protocol) and on real snippets of trials it never saw, measures how
+# long its prior's samples keep the humanoid up, and compares transfer on it against synthetic-v3 at equal steps
+# (velocity control in any direction and go-to-target, three seeds each, one decoder per core).
+# Resumable: rerun it after a kill; every finished step is skipped (each command resumes or its output exists).
+# Where it stands: the files under runs/release-cmu-v1/ (dataset/, distill/, eval_*.json, transfer/).
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+export OMP_NUM_THREADS=1
+[ -z "${VIRTUAL_ENV:-}" ] && [ -f .venv/bin/activate ] && . .venv/bin/activate  # the README install
+group=cmu-locomotion-v1
+runs=runs/release-cmu-v1
+experts=$runs/experts
+STEPS=${STEPS:-7700}            # distillation steps: synthetic-v3's 2,258 for 7 snippets, scaled to 24
+TRANSFER_STEPS=${TRANSFER_STEPS:-300000}
+
+finished=$(ls $experts/*/done.json 2>/dev/null | wc -l)
+if [ "$finished" -lt 24 ] && [ -z "${PARTIAL:-}" ]; then
+    echo "$finished of 24 experts have finished: rerun tools/release/cmu_locomotion_v1_experts.sh first" \
+        "(PARTIAL=1 goes on with the finished ones, for a rehearsal)" >&2
+    exit 1
+fi
+
+# 1. The expert group: a card from each run, then the packaged directory (float16, pickle-free).
+for run in $experts/*/; do
+    snippet=$(basename "$run")
+    [ -f "$run/done.json" ] || continue
+    card=distill/experts/cards/$group/$snippet.card.json
+    [ -f "$card" ] || python tools/release/expert_card.py "$run" --group $group --out "$card"
+    [ -d distill/experts/pretrained/$group/$snippet ] ||
+        mocap-hierarchy expert package "$run" distill/experts/pretrained/$group --card "$card"
+done
+
+# 2. Their rollouts (the paper's A.2 layout), as for synthetic-v3: 20 episodes from the start, 80 from random frames.
+mocap-hierarchy rollout --experts $group --out $runs/dataset --n-start 20 --n-rsi 80 --workers 2
+
+# 3. The multi-clip policy, online (the experts label the states it visits), with a learned prior.
+mocap-hierarchy distill train --data $runs/dataset --out $runs/distill --online --experts $group \
+    --teacher-probability "linear:1@0,0@$((STEPS / 2))" --prior learned --steps "$STEPS" --batch-size 128 \
+    --encoder-layers 512 512 --decoder-layers 512 512 512 --env-workers 2 --checkpoint-every 500
+
+# 4. How well it tracks: its own snippets (fraction of the experts; deterministic, then the paper's noisy protocol),
+#    then snippets of the library's trials none of whose snippets it was trained on.
+[ -f $runs/eval_seen.json ] || mocap-hierarchy distill eval $runs/distill --data $runs/dataset --episodes 50 \
+    --json $runs/eval_seen.json
+[ -f $runs/eval_seen_noisy.json ] || mocap-hierarchy distill eval $runs/distill --data $runs/dataset \
+    --episodes 50 --action-noise 0.1 --json $runs/eval_seen_noisy.json
+trained=$(ls $experts | sed 's/-[0-9]*-[0-9]*$//' | sort -u)
+unseen=$(mocap-hierarchy clips snippets --clips $group | grep -v -F -f <(printf '%s-\n' $trained))
+[ -f $runs/eval_unseen.json ] || mocap-hierarchy distill eval $runs/distill --clips $group --snippets $unseen \
+    --episodes 20 --json $runs/eval_unseen.json
+
+# 5. Standing on its own: the decoder driven by samples of its learned prior on go-to-target (goal: 300 steps).
+[ -f $runs/prior_survival.json ] || python experiments/prior_survival.py $runs/distill --episodes 20 \
+    --json $runs/prior_survival.json
+
+# 6. Transfer at equal steps against synthetic-v3, three seeds, one decoder per core.
+transfer() {  # task label decoder prior seed [settings...]
+    local task=$1 label=$2 decoder=$3 prior=$4 seed=$5
+    shift 5
+    mocap-hierarchy transfer train --task "$task" --decoder "$decoder" --latent-prior "$prior" \
+        --out "$runs/transfer/$task/$label/seed$seed" --seed "$seed" --initial-std 1.0 "$@" \
+        --steps "$TRANSFER_STEPS" --n-envs 8 --steps-per-update 4096 --minibatch-size 512 \
+        --hidden-layers 256 256 --learning-rate 3e-4 --no-subprocess-envs --checkpoint-every 100000
+}
+lane() {  # label decoder prior
+    for seed in 0 1 2; do
+        transfer velocity_control "$@" "$seed" --set max_speed=1.5
+        transfer go_to_target "$@" "$seed" --set approach_reward=10
+    done
+}
+lane synthetic-v3 synthetic-v3 synthetic-v3 &
+v3=$!
+lane cmu-v1 $runs/distill/decoder.safetensors $runs/distill/prior.safetensors &
+real=$!
+wait $v3
+wait $real
+python experiments/transfer_table.py $runs/transfer/velocity_control
+python experiments/transfer_table.py $runs/transfer/go_to_target
+echo "next: write hierarchy/pretrained/cards/cmu-v1.card.json from these figures, then decoder package"
