@@ -119,10 +119,11 @@ def test_latent_env_decodes_and_checks_inputs(walker):
 def test_joint_targets_that_are_not_finite_are_refused_with_their_cause():
     decoder = small_decoder()
     venv = LatentActionVecEnv(DummyVecEnv([lambda: tasks.make("velocity_control", max_steps=15)] * 2), decoder)
-    venv.reset()
     key = next(iter(decoder.spec.observation_sizes))
-    venv._observation = {**venv._observation, key: venv._observation[key].copy()}  # an unstable simulation
-    venv._observation[key][1, 0] = np.nan
+    observations = dict(venv.reset())
+    observations[key] = observations[key].copy()
+    observations[key][1, 0] = np.nan  # what an unstable simulation returns
+    venv._observation = observations
     with pytest.raises(FloatingPointError, match=rf"observations \['{key}'\] are not finite in environments \[1\]"):
         venv.step(np.zeros((2, 6), dtype=np.float32))
     env = LatentActionEnv(tasks.make("velocity_control", max_steps=15), decoder)
