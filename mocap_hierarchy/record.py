@@ -5,7 +5,8 @@ What ``--policy`` may be (recognised by its content, never by unpickling):
 * ``random``: uniform random actions in the task's action space;
 * an expert directory (``clip_info.json`` inside) or a shipped expert's name
   (``synthetic-v3/SYN_walk_slow-0-182``): its deterministic actions, on the
-  tracking or motion-completion task of its snippet;
+  tracking or motion-completion task of its snippet, on the clip library it
+  records (unless ``--set clips=...`` names other clips);
 * a multi-clip ``policy.safetensors`` (``distill train``): tracking with its
   reference look-ahead and deterministic latents;
 * a task ``policy.safetensors`` (``transfer train``) or a shipped task policy's
@@ -129,7 +130,16 @@ def _expert(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
 
     _require_task(task, TRACKING_TASKS, "an expert")
     prompt = ExpertPrompt(load_expert(path))  # makes residual actions absolute itself
-    return _single(prompt, tasks.make(task, **{"snippets": (str(prompt.expert.spec.snippet),), **overrides}))
+    settings = {"snippets": (str(prompt.expert.spec.snippet),), **_recorded_clips(path)}
+    return _single(prompt, tasks.make(task, **{**settings, **overrides}))
+
+
+def _recorded_clips(expert: str | os.PathLike) -> dict[str, str]:
+    """``{"clips": NAME}`` when ``expert`` records the clip library it was trained on, else nothing."""
+    from distill.experts.clip_library import experts_clips
+
+    clips = experts_clips([expert])
+    return {} if clips is None else {"clips": clips}
 
 
 def _multi_clip(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
@@ -161,6 +171,7 @@ def _gpt(task: str, path: Path, overrides: dict[str, Any], prompt: str | None) -
     expert = ExpertPrompt(load_expert(prompt))
     keys = tuple(dict.fromkeys([*gpt.spec.observation_sizes, *expert.keys]))
     settings = {"snippets": (str(expert.expert.spec.snippet),), "observables": keys, "ref_steps": expert.ref_steps}
+    settings.update(_recorded_clips(prompt))
     env = tasks.make(task, **{**settings, **overrides})  # the prompt's reference steps, as `gpt complete` uses
     controller = CompletionController(gpt, expert, [env.unwrapped], context="cache")  # type: ignore[list-item]
     return env, lambda observation: controller.act([0], _batched(observation))[0], lambda: controller.new_episode(0)

@@ -13,9 +13,19 @@ from tests.script_loading import ROOT, load_script
 expert_card = load_script(ROOT / "tools" / "release" / "expert_card.py", "release_expert_card")
 
 
-def fake_run(folder: Path, elapsed: list[int]) -> Path:
-    """An expert run folder as `expert train` leaves it: done.json and a progress log whose clock restarted."""
-    folder.mkdir()
+SETTINGS = {"total_steps": 3_000_000, "eval_episodes": "50@0,500@2M", "residual_actions": True}
+"""What the card reads of a run's config.json: the synthetic release's recipe (`--profile fast-3m-wide`)."""
+
+
+def fake_run(folder: Path, elapsed: list[int], clips: str | None = None, steps: int = 3_000_000) -> Path:
+    """An expert run folder as `expert train` leaves it: settings, the snippet, done.json and a progress log whose
+    clock restarted."""
+    folder.mkdir(parents=True)
+    config = {**SETTINGS, "total_steps": steps, "ppo": {"hidden_layers": [512, 512]}}
+    (folder / "config.json").write_text(json.dumps(config))
+    clip_id, start, end = folder.name.rsplit("-", 2)
+    info = {"clip_id": clip_id, "start_step": int(start), "end_step": int(end)}
+    (folder / "clip_info.json").write_text(json.dumps(info if clips is None else {**info, "clips": clips}))
     rows = ["time/total_timesteps,time/time_elapsed"] + [f"{4096 * (i + 1)},{t}" for i, t in enumerate(elapsed)]
     (folder / "progress.csv").write_text("\n".join(rows) + "\n")
     final = {
@@ -25,19 +35,19 @@ def fake_run(folder: Path, elapsed: list[int]) -> Path:
         "normalized_length": 0.98465,
         "tracking": {"success": 0.93412, "global_position_error_mm": 124.2233},
     }
-    done = {"snippet": "SYN_walk_slow-0-182", "steps": 3_000_000, "best": {**final, "steps": 2_950_000}}
+    done = {"snippet": folder.name, "steps": 3_000_000, "best": {**final, "steps": 2_950_000}}
     (folder / "done.json").write_text(json.dumps({**done, "final_evaluation": final}))
     return folder
 
 
 def test_training_time_sums_the_segments_of_a_resumed_run(tmp_path):
-    run = fake_run(tmp_path / "run", [60, 120, 600, 30, 90, 1200])  # resumed once: 600 s, then 1200 s
+    run = fake_run(tmp_path / "SYN_walk_slow-0-182", [60, 120, 600, 30, 90, 1200])  # resumed once: 600 s, 1200 s
     assert expert_card.training_seconds(run / "progress.csv") == 1800
 
 
 def test_the_card_holds_the_final_evaluation_and_passes_the_card_checks(tmp_path):
-    run = fake_run(tmp_path / "run", [600])
-    card = expert_card.expert_card(run, "synthetic-v3", "")
+    run = fake_run(tmp_path / "SYN_walk_slow-0-182", [600])
+    card = expert_card.expert_card(run, "synthetic-v3")
     assert check_card(card, "the test card") == card
     assert card["name"] == "synthetic-v3/SYN_walk_slow-0-182"
     assert card["scores"]["normalized_length"] == 0.9847 and card["scores"]["success"] == 0.9341
@@ -45,8 +55,48 @@ def test_the_card_holds_the_final_evaluation_and_passes_the_card_checks(tmp_path
     assert "kept at 2,950,000 of 3,000,000 steps" in card["summary"]
     assert card["budgets"]["wall time"].startswith("10 minutes")
     assert "--snippet SYN_walk_slow-0-182" in card["commands"][0] and "--steps" not in card["commands"][0]
+    assert "of the built-in synthetic clips (`--profile fast-3m-wide`: 2 x 512, residual actions)" in card["summary"]
+    assert card["notes"] == [expert_card.RECIPE_NOTE]
     with pytest.raises(FileNotFoundError):
-        expert_card.expert_card(tmp_path / "missing", "synthetic-v3", "")
+        expert_card.expert_card(tmp_path / "missing", "synthetic-v3")
+
+
+def test_a_synthetic_card_gives_the_commands_and_note_of_the_shipped_one(tmp_path, monkeypatch):
+    shipped = json.loads((ROOT / "distill/experts/cards/synthetic-v3/SYN_walk_slow-0-182.card.json").read_text())
+    monkeypatch.chdir(tmp_path)  # the run named as the release guide names it
+    run = fake_run(Path("runs/release-v3/experts/SYN_walk_slow-0-182"), [600])
+    card = expert_card.expert_card(run, "synthetic-v3", shipped_card_path("synthetic-v3", run.name))
+    assert card["commands"] == shipped["commands"] and card["notes"] == shipped["notes"]
+    assert card["summary"].split(", kept at")[0] == shipped["summary"].split(", kept at")[0]
+    stand = fake_run(Path("runs/release-v3/experts/SYN_stand-0-181"), [600], steps=400_000)
+    train = expert_card.expert_card(stand, "synthetic-v3")["commands"][0]
+    assert "--profile fast-3m-wide --steps 400000 --eval-episodes" in train  # the budget from its config.json
+
+
+def shipped_card_path(group: str, snippet: str) -> Path:
+    return Path("distill/experts/cards") / group / f"{snippet}.card.json"
+
+
+def test_a_real_card_names_its_clip_library_run_folder_and_card_file(tmp_path):
+    run = fake_run(tmp_path / "runs" / "experts" / "CMU_016_22-0-82", [600], clips="cmu-locomotion-v1", steps=10**6)
+    card_file = tmp_path / "cards" / "CMU_016_22-0-82.card.json"
+    card = expert_card.expert_card(run, "cmu-locomotion-v1", card_file)
+    assert check_card(card, "the test card") == card and "notes" not in card  # only synthetic-v3 has a default note
+    assert "`CMU_016_22-0-82` of the clip library `cmu-locomotion-v1` (`--profile" in card["summary"]
+    train, package = card["commands"]
+    assert train == (
+        f"mocap-hierarchy expert train --snippet CMU_016_22-0-82 --clips cmu-locomotion-v1 --out {run.parent} "
+        '--profile fast-3m-wide --steps 1000000 --eval-episodes "50@0,500@2M"'
+    )
+    assert package == (
+        f"mocap-hierarchy expert package {run} distill/experts/pretrained/cmu-locomotion-v1 --clips cmu-locomotion-v1 "
+        f"--card {card_file}"
+    )
+    older = fake_run(tmp_path / "older" / "CMU_016_22-0-82", [600])  # trained before experts recorded their clips
+    assert "of the CMU 2020 clips" in expert_card.expert_card(older, "cmu-locomotion-v1")["summary"]
+    given = expert_card.expert_card(older, "cmu-locomotion-v1", clips="cmu-locomotion-v1", note="First of its kind.")
+    assert "--clips cmu-locomotion-v1 --out" in given["commands"][0] and given["notes"] == ["First of its kind."]
+    assert "notes" not in expert_card.expert_card(run, "synthetic-v3", note="")
 
 
 def test_expert_status_reads_where_a_run_stands_and_its_final_evaluation(tmp_path, monkeypatch):

@@ -164,6 +164,23 @@ class RolloutDataset:
         """Clip ids in the dataset."""
         return sorted({parse_snippet_id(s).clip_id for s in self.snippets()})
 
+    def clip_library(self) -> str | None:
+        """The shipped clip library the rollouts were made on (the files' ``clips`` attribute), or None.
+
+        Raises:
+            DatasetError: The files record different libraries (or some one and some none).
+        """
+        recorded: dict[str | None, list[str]] = {}
+        for path, layout in zip(self.files, self.layouts, strict=True):
+            recorded.setdefault(layout.clips, []).append(path.name)
+        if len(recorded) > 1:
+            found = "; ".join(f"{name or 'none recorded'}: {', '.join(files[:3])}" for name, files in recorded.items())
+            raise schema.DatasetError(
+                f"the rollout files were made on different clips ({found}): pass --clips with the clip library or "
+                "file holding all their snippets"
+            )
+        return next(iter(recorded), None)
+
     def episodes_of(self, snippet: str) -> list[EpisodeRef]:
         """The episodes of one snippet."""
         found = [e for e in self.episodes if e.snippet == snippet]

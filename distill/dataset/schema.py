@@ -3,7 +3,8 @@
 One HDF5 file per clip, named ``<clip_id>.hdf5``; the writer and the reader
 both import this module, so the layout exists in one place::
 
-    /                                   attrs: mocap_hierarchy_rollouts (schema version), clip_id
+    /                                   attrs: mocap_hierarchy_rollouts (schema version), clip_id,
+                                        clips (the shipped clip library rolled out on, when named)
     n_rsi_rollouts, n_start_rollouts    () int64: R and S
     ref_steps                           (k,) int64: reference look-ahead (1..5)
     observable_indices/walker/<name>    (size,) int64: columns of the observation vector
@@ -23,7 +24,7 @@ both import this module, so the layout exists in one place::
             rewards, values, advantages (T,) float32 (GAE with the expert's gamma and lambda)
 
 Group and dataset names are MoCapAct's, so its released files read with the
-same code; they lack the schema attribute and ``log_probs``. MoCapAct's reader
+same code; they lack the schema attribute, ``clips`` and ``log_probs``. MoCapAct's reader
 (``ExpertDataset``) also needs ``dataset_metrics.npz`` beside the files
 (:mod:`distill.dataset.metrics` writes it).
 
@@ -56,6 +57,9 @@ REF_STEPS = "ref_steps"
 OBSERVABLE_INDICES = "observable_indices"
 STATS = "stats"
 STAT_NAMES = ("proprio_mean", "proprio_var", "act_mean", "act_var", "mean_act_mean", "mean_act_var", "count")
+CLIPS_ATTRIBUTE = "clips"
+"""Root attribute of our files rolled out on a shipped clip library: its name (``cmu-locomotion-v1``); a file path
+is not recorded (:mod:`distill.experts.clip_library`)."""
 ACTION_COUNT = "action_count"
 """Stats entry of our files only: actions counted (``count`` counts observation rows)."""
 EARLY_TERMINATION = "early_termination"
@@ -161,6 +165,7 @@ class FileLayout:
         observable_indices: Column indices of each observable.
         has_log_probs: Whether episodes store ``log_probs``.
         width: Columns of an observation row.
+        clips: The shipped clip library the rollouts were made on, or None (not recorded).
     """
 
     version: int
@@ -171,6 +176,7 @@ class FileLayout:
     observable_indices: dict[str, np.ndarray]
     has_log_probs: bool
     width: int = 0
+    clips: str | None = None
 
 
 def group_at(node: h5py.Group, path: str, where: str) -> h5py.Group:
@@ -263,6 +269,11 @@ def _validate(f: h5py.File, where: str) -> FileLayout:
     largest = max(int(v.max()) for v in indices.values())
     if largest >= width or min(int(v.min()) for v in indices.values()) < 0:
         raise DatasetError(f"{where}: observable_indices reach column {largest} but observations have {width}")
+    clips = f.attrs.get(CLIPS_ATTRIBUTE)
+    if clips is not None and not isinstance(clips, str):
+        raise DatasetError(
+            f"{where}: the {CLIPS_ATTRIBUTE} attribute is {type(clips).__name__}, not a clip library's name; {REWRITE}"
+        )
     ref_steps = array_at(f, REF_STEPS, where)
     if ref_steps.ndim != 1 or ref_steps.dtype.kind not in "iu":
         raise DatasetError(f"{where}: /{REF_STEPS} is {ref_steps.dtype} of shape {ref_steps.shape}, not steps")
@@ -275,4 +286,5 @@ def _validate(f: h5py.File, where: str) -> FileLayout:
         observable_indices=indices,
         has_log_probs=log_probs,
         width=width,
+        clips=clips,
     )

@@ -7,7 +7,9 @@ observable set: 2868 values per step). Episodes store the absolute actions
 the humanoid received (also for residual experts), the mean actions, their
 log-probabilities, rewards, the expert's values and GAE advantages.
 
-Files are written atomically and a rerun skips clips whose file is complete.
+Files are written atomically and a rerun skips clips whose file is complete. Given no clip
+source, experts roll out on the clip library they record (:mod:`distill.experts.clip_library`);
+a file rolled out on a shipped library records its name (the ``clips`` attribute).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from distill.dataset.episodes import (  # noqa: F401 (defined there, shared with
     rollout_task,
 )
 from distill.dataset.metrics import write_dataset_metrics
+from distill.experts.clip_library import experts_clips, library_name
 from distill.experts.fanout import Job
 from distill.experts.files import ExpertRoots, find_experts
 from distill.experts.loading import load_expert
@@ -132,6 +135,7 @@ def write_rollout_file(
     snippets: dict[str, tuple[list[Episode], list[Episode]]],
     n_start: int,
     n_rsi: int,
+    library: str | None = None,
 ) -> Path:
     """Writes one clip's rollouts atomically (the paper's A.2 layout).
 
@@ -141,6 +145,7 @@ def write_rollout_file(
         snippets: ``{snippet id: (start episodes, random-start episodes)}``.
         n_start: S (episodes from the snippet start).
         n_rsi: R (episodes from random frames).
+        library: The shipped clip library rolled out on, recorded in the ``clips`` attribute (None: none).
     """
     path = Path(path)
     width = sum(len(v) for v in observable_indices().values())
@@ -154,6 +159,8 @@ def write_rollout_file(
         f.attrs[schema.SCHEMA_ATTRIBUTE] = schema.SCHEMA_VERSION
         f.attrs["clip_id"] = clip_id
         f.attrs["library_version"] = library_version()
+        if library is not None:
+            f.attrs[schema.CLIPS_ATTRIBUTE] = library
         f[schema.N_START] = np.int64(n_start)
         f[schema.N_RSI] = np.int64(n_rsi)
         f[schema.REF_STEPS] = np.asarray(ROLLOUT_REF_STEPS, dtype=np.int64)
@@ -234,7 +241,8 @@ def rollout_clip(
         experts: ``{snippet id: expert directory or RolloutPolicy}`` of this clip.
         out: Dataset folder.
         config: Rollout settings.
-        clips: Clip file.
+        clips: Clip file or shipped clip library (None: the library the expert directories record, else each
+            snippet's default source).
         progress: Show a progress bar over snippets.
     """
     if config.engine not in ("process", "warp"):
@@ -242,6 +250,7 @@ def rollout_clip(
     path = rollout_path(out, clip_id)
     if is_complete(path, list(experts), config.n_start, config.n_rsi):
         return path
+    clips = experts_clips([source for source in experts.values() if isinstance(source, str | os.PathLike)], clips)
     walker = build_walker()
     results = {}
     for number, (snippet, source) in enumerate(
@@ -261,7 +270,7 @@ def rollout_clip(
             start = rollout_snippet(policy, snippet, config.n_start, "start", seed=seed, **lockstep)  # type: ignore[arg-type]
             random = rollout_snippet(policy, snippet, config.n_rsi, "random", seed=seed + 1, **lockstep)  # type: ignore[arg-type]
         results[snippet] = (start, random)
-    return write_rollout_file(path, clip_id, results, config.n_start, config.n_rsi)
+    return write_rollout_file(path, clip_id, results, config.n_start, config.n_rsi, library_name(clips))
 
 
 def rollout_path(out: str | os.PathLike, clip_id: str) -> Path:
@@ -280,7 +289,12 @@ def experts_by_clip(experts_dir: ExpertRoots) -> dict[str, dict[str, Path]]:
 def rollout_jobs(
     experts_dir: ExpertRoots, out: str | os.PathLike, config: RolloutConfig, clips: str | None = None
 ) -> list[Job]:
-    """One fan-out job per clip (see :func:`distill.experts.fanout.run_jobs`), complete files marked done."""
+    """One fan-out job per clip (see :func:`distill.experts.fanout.run_jobs`), complete files marked done.
+
+    Every job rolls out on ``clips``, else on the library all the experts record (:func:`experts_clips`).
+    """
+    by_clip = experts_by_clip(experts_dir)
+    clips = experts_clips([root for experts in by_clip.values() for root in experts.values()], clips)
     return [
         Job(
             name=clip_id,
@@ -288,7 +302,7 @@ def rollout_jobs(
             kwargs={"clip_id": clip_id, "experts": experts, "out": out, "config": config, "clips": clips},
             done=is_complete(rollout_path(out, clip_id), list(experts), config.n_start, config.n_rsi),
         )
-        for clip_id, experts in experts_by_clip(experts_dir).items()
+        for clip_id, experts in by_clip.items()
     ]
 
 
@@ -307,10 +321,9 @@ def rollout_experts(
         RunFolderInUseError: Another run writes ``out``.
     """
     config = config or RolloutConfig()
+    by_clip = experts_by_clip(experts_dir)
+    clips = experts_clips([root for experts in by_clip.values() for root in experts.values()], clips)
     with run_lock(out):
-        files = [
-            rollout_clip(clip, dict(experts), out, config, clips, progress=True)
-            for clip, experts in experts_by_clip(experts_dir).items()
-        ]
+        files = [rollout_clip(clip, dict(rows), out, config, clips, progress=True) for clip, rows in by_clip.items()]
         write_dataset_metrics(out)
     return files

@@ -34,6 +34,7 @@ from distill.experts.batched_learner import (
     load_checkpoint,
     save_checkpoint,
 )
+from distill.experts.clip_library import library_name, training_clips
 from distill.experts.config import BatchedExpertConfig, EvaluationConfig
 from distill.experts.evaluation import evaluate_policy, training_task
 from distill.experts.files import expert_dir_for, write_clip_info
@@ -59,7 +60,9 @@ def train_experts_batched(
         snippets: Snippet ids; experts already done under ``out`` are skipped.
         out: Directory of the expert directories (the paper's A.1 layout).
         config: Settings (defaults: :class:`BatchedExpertConfig`).
-        clips: Clip file (None: the default source).
+        clips: Clip file or a shipped clip library's name, recorded in each ``clip_info.json`` (a name only,
+            see :mod:`distill.experts.clip_library`). None: the library resumed experts recorded, else the
+            default source.
         progress: Print a line per update.
 
     Returns:
@@ -67,6 +70,8 @@ def train_experts_batched(
 
     Raises:
         TrainingStopped: Ctrl-C or ``SIGTERM``; checkpoints were saved.
+        ClipLibraryMismatchError: A checkpoint continues a run on another clip library than ``clips`` names,
+            or, given no ``clips``, the experts started record different ones.
     """
     config = config or BatchedExpertConfig()
     config.validate()
@@ -74,6 +79,7 @@ def train_experts_batched(
     todo = [s for s in ids if not expert_dir_for(out, s).is_done()]
     if not todo:
         return {}
+    clips = training_clips([expert_dir_for(out, snippet) for snippet in todo], clips)
     tracking = training_task(tuple(todo), clips, config)
     per = config.worlds_per_snippet
     env = BatchedTrackingEnv(
@@ -90,7 +96,8 @@ def train_experts_batched(
     for index, snippet in enumerate(todo):
         expert = expert_dir_for(out, snippet)
         expert.root.mkdir(parents=True, exist_ok=True)
-        write_clip_info(expert.root, parse_snippet_id(snippet), env.reference_env.references[index].num_frames)
+        frames = env.reference_env.references[index].num_frames
+        write_clip_info(expert.root, parse_snippet_id(snippet), frames, library_name(clips))
         write_json(expert.config, {"engine": "warp", **config_to_dict(config)})
         learner = Learner(
             snippet,

@@ -3,7 +3,8 @@
 One directory per snippet expert, named by the snippet id::
 
     <CLIP>-<start>-<end>/
-        clip_info.json                  clip_id, start_step, end_step (A.1)
+        clip_info.json                  clip_id, start_step, end_step (A.1); ours: clips, the shipped
+                                        clip library it tracks when trained on one by name
         eval_rsi/model/best_model.zip   stable-baselines3 PPO (A.1)
         eval_rsi/model/vecnormalize.pkl stable-baselines3 VecNormalize (A.1)
         eval_rsi/model/expert.safetensors  ours: the same policy's weights, normaliser statistics and,
@@ -25,6 +26,12 @@ sidecar instead (written like the decoder file, :mod:`foundation.described_file`
 and never execute code from a file. Experts from
 elsewhere (MoCapAct's release) have no sidecar and can be converted with
 ``trust_pickle=True`` when their source is trusted.
+
+``clip_info.json``'s ``clips`` (:data:`CLIPS_KEY`) names the clip library an expert was
+trained on (``cmu-locomotion-v1``) when training was given a shipped library's name; commands
+given the expert and no ``--clips`` track that library (:mod:`distill.experts.clip_library`).
+A file path is never recorded; without the key (MoCapAct's experts, ours trained on a file or
+the default source) each snippet's default source applies.
 """
 
 from __future__ import annotations
@@ -203,10 +210,25 @@ class ExpertDir:
                 )
 
 
-def write_clip_info(root: Path, snippet: SnippetId, clip_length: int) -> None:
-    """Writes ``clip_info.json`` (whole clips get ``end_step`` = clip length)."""
+CLIPS_KEY = "clips"
+"""The key of ``clip_info.json`` naming the shipped clip library the expert tracks (ours; A.1 has no such key)."""
+
+
+def write_clip_info(root: Path, snippet: SnippetId, clip_length: int, library: str | None = None) -> None:
+    """Writes ``clip_info.json`` (whole clips get ``end_step`` = clip length).
+
+    Args:
+        root: The expert directory.
+        snippet: The snippet it tracks.
+        clip_length: Frames of the clip (the end of a whole-clip snippet).
+        library: The shipped clip library's name it is trained on, recorded under :data:`CLIPS_KEY`; None
+            records none (the paper's layout exactly).
+    """
     end = clip_length if snippet.end is None else snippet.end
-    write_json(ExpertDir(root).clip_info, {"clip_id": snippet.clip_id, "start_step": snippet.start, "end_step": end})
+    info: dict = {"clip_id": snippet.clip_id, "start_step": snippet.start, "end_step": end}
+    if library is not None:
+        info[CLIPS_KEY] = library
+    write_json(ExpertDir(root).clip_info, info)
 
 
 CLIP_INFO_EXAMPLE = '{"clip_id": "CMU_016_22", "start_step": 0, "end_step": 82}'
@@ -214,7 +236,9 @@ CLIP_INFO_EXAMPLE = '{"clip_id": "CMU_016_22", "start_step": 0, "end_step": 82}'
 
 
 def read_clip_info(root: Path) -> dict:
-    """Reads and checks ``clip_info.json``: a clip id, and start and end steps that make a snippet.
+    """Reads and checks ``clip_info.json``: a clip id, start and end steps that make a snippet, a library's name.
+
+    The library's name (:data:`CLIPS_KEY`) is optional: MoCapAct's files lack it.
 
     Raises:
         ExpertFilesError: Missing, unreadable, not a JSON mapping, or its fields are missing or of another
@@ -242,6 +266,11 @@ def read_clip_info(root: Path) -> dict:
         parse_snippet_id(f"{info['clip_id']}-{steps[0]}-{steps[1]}")
     except ValueError as error:
         raise ExpertFilesError(f"{path} names no snippet ({error}); it should hold {CLIP_INFO_EXAMPLE}") from None
+    if CLIPS_KEY in info and not isinstance(info[CLIPS_KEY], str):
+        raise ExpertFilesError(
+            f'{path}: {CLIPS_KEY} must name a shipped clip library (a string such as "cmu-locomotion-v1"), not '
+            f"{json_type(info[CLIPS_KEY])}; remove the key if the expert was trained on the default clips"
+        )
     return info
 
 

@@ -3,7 +3,8 @@
 A packaged expert directory holds what loading needs and nothing else::
 
     <CLIP>-<start>-<end>/
-        clip_info.json                      the snippet (the paper's A.1)
+        clip_info.json                      the snippet (the paper's A.1) and, when the source records one, the
+                                            shipped clip library it tracks (``clips``, kept)
         eval_rsi/model/expert.safetensors   weights (float16 by default), normaliser statistics (float64)
                                             and description, the model card under provenance["model_card"]
 
@@ -30,13 +31,14 @@ import numpy as np
 import torch
 from tqdm.auto import tqdm
 
+from distill.experts.clip_library import experts_clips, library_name
 from distill.experts.config import (  # the defaults: defined there (light), used and re-exported here
     PACKAGING_EPISODES,
     PACKAGING_TOLERANCE,
     EvaluationConfig,
 )
 from distill.experts.evaluation import evaluation_task
-from distill.experts.files import ExpertDir, ExpertFilesError, read_clip_info
+from distill.experts.files import CLIPS_KEY, ExpertDir, ExpertFilesError, read_clip_info
 from distill.experts.loading import load_expert
 from distill.experts.policy import ExpertPolicy
 from distill.experts.shipped import resolve_experts
@@ -98,7 +100,9 @@ def package_expert(
         seed: Seed of the episodes' starts and noise.
         tolerance: Refuse (and write nothing) when a mean action changes by more than this; None accepts any
             change.
-        clips: Clip file of the snippet (None: resolved from its id).
+        clips: Clip file or shipped clip library of the snippet (None: the library the source records, else
+            resolved from its id). A library's name is recorded in the packaged ``clip_info.json`` when the
+            source records none (an expert trained before the record existed).
         progress: Show a progress bar over the episodes (after a few seconds).
 
     Returns:
@@ -106,7 +110,8 @@ def package_expert(
 
     Raises:
         PackagingError: The card is not a mapping, the destination is the source or not an expert
-            directory, or float16 changes an action by more than ``tolerance``.
+            directory, ``clips`` names another library than the source records, or float16 changes an action
+            by more than ``tolerance``.
         ExpertFilesError: The source is not a loadable expert directory.
     """
     if not isinstance(card, Mapping):
@@ -121,12 +126,15 @@ def package_expert(
         raise ExpertFilesError(f"{root}: clip_info.json names {snippet}, its expert.safetensors {source.spec.snippet}")
     target = Path(out_folder) / snippet
     _check_target(target, root)
+    library = _packaged_library(root, info.get(CLIPS_KEY), clips)
+    clips = experts_clips([root], clips)
 
     staging = owned_temporary(target)
     shutil.rmtree(staging, ignore_errors=True)  # this process's own, from a write that failed
     try:
         staged = ExpertDir(staging)
-        write_json(staged.clip_info, {key: info[key] for key in ("clip_id", "start_step", "end_step")})
+        kept = {key: info[key] for key in ("clip_id", "start_step", "end_step")}
+        write_json(staged.clip_info, {**kept, CLIPS_KEY: library} if library is not None else kept)
         packaged = _with_card(load_expert(root), card)
         packaged.save(staged, torch.float16 if float16 else torch.float32)
         written = ExpertPolicy.load(staged)
@@ -145,6 +153,17 @@ def package_expert(
         raise
     remove_stale_temporaries(target)
     return PackagedExpert(target, difference, len(actions))
+
+
+def _packaged_library(root: Path, recorded: str | None, clips: str | None) -> str | None:
+    """The library the packaged ``clip_info.json`` records: the source's, else the one ``clips`` names."""
+    given = library_name(clips)
+    if recorded is not None and given is not None and given != recorded:
+        raise PackagingError(
+            f"{root} was trained on clip library {recorded!r} (its clip_info.json), not {given!r}: package it "
+            f"with --clips {recorded} (or without --clips)"
+        )
+    return recorded if recorded is not None else given
 
 
 def _check_target(target: Path, source: Path) -> None:

@@ -27,6 +27,7 @@ from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from tqdm.auto import tqdm
 
 from distill.experts.callbacks import EpisodeStats, FixedNoise, PeriodicEvaluation, RolloutSizeLog, RunState
+from distill.experts.clip_library import library_name, training_clips
 from distill.experts.config import ExpertConfig
 from distill.experts.config_versions import expert_settings_json
 from distill.experts.environments import training_envs
@@ -90,7 +91,9 @@ def train_expert(
         snippet: Snippet id (``CLIP-START-END``) or a whole clip id.
         out: Folder that receives the ``<snippet>/`` expert directory.
         config: Training settings (the paper's defaults).
-        clips: Clip file (None: resolved from the snippet id).
+        clips: Clip file or a shipped clip library's name, recorded in ``clip_info.json`` (a name only, see
+            :mod:`distill.experts.clip_library`). None: a resumed run's recorded library, else resolved from the
+            snippet id.
         progress: Show a progress bar.
 
     Returns:
@@ -98,6 +101,7 @@ def train_expert(
 
     Raises:
         ConfigMismatchError: A checkpoint from different settings exists.
+        ClipLibraryMismatchError: A checkpoint continues a run on another clip library than ``clips`` names.
         TrainingStopped: Ctrl-C or ``SIGTERM`` arrived; a checkpoint of the step reached is saved.
         TrainingDiverged: An update made the losses, weights or normaliser NaN or infinite; the last
             checkpoint written before it is kept.
@@ -112,11 +116,12 @@ def train_expert(
     expert = expert_dir_for(out, snippet)
     if expert.is_done():
         return _already_done(expert, str(snippet_id))
+    clips = training_clips([expert], clips)  # a resumed run's recorded library; refuses another one
     clip_file, frames = _check_snippet(snippet_id, clips)  # nothing is created for a clip or steps not there
     with run_lock(expert.root):  # one writer per expert directory
         if expert.is_done():  # finished by another run between the check and the lock
             return _already_done(expert, str(snippet_id))
-        return _train(expert, snippet_id, clip_file, frames, config, progress, started)
+        return _train(expert, snippet_id, (clip_file, library_name(clips), frames), config, progress, started)
 
 
 def _already_done(expert: ExpertDir, name: str) -> TrainingResult:
@@ -127,15 +132,18 @@ def _already_done(expert: ExpertDir, name: str) -> TrainingResult:
 def _train(
     expert: ExpertDir,
     snippet_id: SnippetId,
-    clip_file: str,
-    frames: int,
+    clips: tuple[str, str | None, int],
     config: ExpertConfig,
     progress: bool,
     started: float,
 ) -> TrainingResult:
-    """:func:`train_expert` once the expert directory is this run's: the environments, the PPO, the loop, the files."""
+    """:func:`train_expert` once the expert directory is this run's: the environments, the PPO, the loop, the files.
+
+    ``clips``: the clip file, the shipped library's name recorded for it (or None) and the clip's frames.
+    """
     name = str(snippet_id)
-    write_clip_info(expert.root, snippet_id, frames)
+    clip_file, library, frames = clips
+    write_clip_info(expert.root, snippet_id, frames, library)
     saved_state = check_resume(expert, config)
     write_json(expert.config, expert_settings_json(config))
     if config.torch_threads > 0:

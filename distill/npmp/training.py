@@ -159,25 +159,36 @@ the card's command leaves them out."""
 
 @dataclass
 class _Teaching:
-    """Online distillation's part of a run: its settings, the teachers, and the batch source once built."""
+    """Online distillation's part of a run: its settings, the teachers, the clips, and the batch source once built.
+
+    The environments track ``clips``: the settings' own, else the clip library the teachers record, else the one
+    the rollouts were made on (:mod:`distill.experts.clip_library`); the settings, which the resume check
+    compares, keep what was given.
+    """
 
     config: OnlineDistillConfig
     teachers: dict[str, Any]
     fingerprints: dict[str, str]
+    clips: str | None = None
     batches: Any = None
 
     @classmethod
     def prepare(cls, data: Any, config: OnlineDistillConfig) -> _Teaching:
         """Loads the teachers of the dataset's snippets (refused before training when some are missing)."""
+        from distill.experts.clip_library import experts_clips
+        from distill.experts.files import find_experts
         from distill.npmp.teachers import load_teachers
 
         dataset = RolloutDataset(data)
         try:
             snippets = dataset.snippets()
+            rolled_out_on = dataset.clip_library() if config.clips is None else None
         finally:
             dataset.close()
         teachers, fingerprints = load_teachers(config.experts, snippets)
-        return cls(config, teachers, fingerprints)
+        found = find_experts(config.experts)
+        clips = experts_clips([found[snippet] for snippet in snippets], config.clips) or rolled_out_on
+        return cls(config, teachers, fingerprints, clips)
 
     def settings(self) -> dict[str, Any]:
         """What the resume check adds: the online settings and the teachers' weights (SHA-256)."""
@@ -190,7 +201,8 @@ class _Teaching:
 
         def make(dataset: RolloutDataset, windows: WindowDataset, model: Any):
             del dataset
-            self.batches = online_batches(model, self.teachers, windows, self.config, trainer)
+            config = dataclasses.replace(self.config, clips=self.clips)
+            self.batches = online_batches(model, self.teachers, windows, config, trainer)
             return self.batches
 
         return make

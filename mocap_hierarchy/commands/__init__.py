@@ -34,6 +34,12 @@ COMMAND_MODULES = (
 )
 """Modules of :mod:`mocap_hierarchy.commands`, in the order of the help text."""
 
+EXPERTS_CLIPS_HELP = (
+    "clip file or shipped clip library (default: the library the experts record in clip_info.json, else CMU for "
+    "CMU_* ids, else synthetic)"
+)
+"""How the commands given experts describe ``--clips`` (:mod:`distill.experts.clip_library`)."""
+
 
 def read_json_file(path: str | os.PathLike, what: str = "model card") -> Any:
     """The JSON in ``path`` (a card or a results file a command is given); an error naming it when missing or broken.

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from distill.dataset.config import RolloutConfig
 from foundation.config_cli import LazySubParsers, add_dataclass_arguments, dataclass_from_args
+from mocap_hierarchy.commands import EXPERTS_CLIPS_HELP
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
@@ -22,7 +23,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
         "(synthetic-v3); each snippet's expert found once",
     )
     rollout.add_argument("--out", type=Path, required=True, help="dataset folder")
-    rollout.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    rollout.add_argument("--clips", default=None, help=EXPERTS_CLIPS_HELP)
     rollout.add_argument("--workers", type=int, default=1, help="clips rolled out in parallel processes")
     rollout.add_argument("--ray", default=None, metavar="ADDRESS", help="run the clips on a Ray cluster")
     add_dataclass_arguments(rollout, RolloutConfig)

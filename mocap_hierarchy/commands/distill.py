@@ -29,7 +29,12 @@ def add_commands(subparsers: LazySubParsers) -> None:
     evaluate_npmp.add_argument("policy", type=Path, help="policy.safetensors (or the distillation folder)")
     evaluate_npmp.add_argument("--data", type=Path, default=None, help="rollout dataset: its snippets and experts")
     evaluate_npmp.add_argument("--snippets", nargs="+", default=None, help="snippet or clip ids (default: the data's)")
-    evaluate_npmp.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    evaluate_npmp.add_argument(
+        "--clips",
+        default=None,
+        help="clip file or shipped clip library (default: the library --data's rollouts record, else CMU for CMU_* "
+        "ids, else synthetic)",
+    )
     evaluate_npmp.add_argument("--json", type=Path, default=None, help="write the results here")
     add_dataclass_arguments(evaluate_npmp, PolicyEvaluationConfig)
     evaluate_npmp.set_defaults(handler=_distill_eval)
@@ -93,14 +98,15 @@ def _distill_eval(args: argparse.Namespace) -> None:
     config = dataclass_from_args(PolicyEvaluationConfig, args)
     path = file_in_folder(args.policy, POLICY_FILE)
     policy = load_policy(path)
-    experts = {}
+    experts, clips = {}, args.clips
     if args.data is not None:
         dataset = RolloutDataset(args.data)
         experts = dataset.expert_metrics(config.init)
+        clips = clips or dataset.clip_library()  # --clips, else the library the rollouts were made on
     snippets = args.snippets or sorted(experts)
     if not snippets:
         raise ValueError("name --snippets (snippet or clip ids) or give --data to evaluate the dataset's snippets")
-    results = evaluate_multi_clip(policy, snippets, config, clips=args.clips, progress=True)
+    results = evaluate_multi_clip(policy, snippets, config, clips=clips, progress=True)
     noise = f", action noise {config.action_noise:g}" if config.action_noise > 0 else ""
     print(
         f"{config.episodes} episodes per snippet from {config.init} frames{noise}; success: reaching the snippet's "

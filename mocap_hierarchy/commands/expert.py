@@ -27,10 +27,15 @@ from foundation.config_cli import (
 )
 from foundation.config_files import config_to_toml, read_config_file, setting_names, with_settings
 from foundation.run_lock import run_lock
-from mocap_hierarchy.commands import add_precision_arguments, read_json_file
+from mocap_hierarchy.commands import EXPERTS_CLIPS_HELP, add_precision_arguments, read_json_file
 
 EXPERT_HELP = "an expert directory or a shipped expert's name (synthetic-v3/SYN_walk_slow-0-182)"
 """How every command that takes one expert describes the argument."""
+TRAIN_CLIPS_HELP = (
+    "clip file or shipped clip library (cmu-locomotion-v1, synthetic; a name is recorded in clip_info.json); "
+    "default: the library a resumed run recorded, else CMU for CMU_* ids, else synthetic"
+)
+"""How the training commands describe ``--clips``."""
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
@@ -41,7 +46,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     train = commands.add_parser("train", help="train one snippet expert with PPO (resumes if interrupted)")
     train.add_argument("--snippet", required=True, help="snippet id CLIP-START-END (or a clip id)")
     train.add_argument("--out", type=Path, required=True, help="folder receiving <snippet>/ (the paper's A.1 layout)")
-    train.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    train.add_argument("--clips", default=None, help=TRAIN_CLIPS_HELP)
     train.add_argument("--steps", type=int, default=None, help="environment steps (same as --total-steps)")
     _add_profile(train)
     add_dataclass_arguments(train, ExpertConfig, base=ExpertConfig())
@@ -50,7 +55,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
     many = commands.add_parser("train-many", help="train many experts as independent jobs (process pool or Ray)")
     many.add_argument("--snippets", type=Path, required=True, help="text file: one snippet id per line")
     many.add_argument("--out", type=Path, required=True, help="folder receiving one <snippet>/ per expert")
-    many.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    many.add_argument("--clips", default=None, help=TRAIN_CLIPS_HELP)
     many.add_argument("--steps", type=int, default=None, help="environment steps per expert (same as --total-steps)")
     many.add_argument("--workers", type=int, default=0, help="local worker processes (0: one per core)")
     many.add_argument("--ray", default=None, metavar="ADDRESS", help="run on a Ray cluster ('local' starts one)")
@@ -75,7 +80,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
         nargs="+",
         help="expert directories or folders of them, shipped experts' names or a group of them (synthetic-v3)",
     )
-    evaluate.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    evaluate.add_argument("--clips", default=None, help=EXPERTS_CLIPS_HELP)
     evaluate.add_argument("--deterministic", action="store_true", help="no action noise (same as --action-noise 0)")
     evaluate.add_argument("--trust-pickle", action="store_true", help="convert experts without our sidecar")
     evaluate.add_argument("--evaluation", choices=EVALUATIONS, default="eval_rsi", help="which best policy to use")
@@ -110,7 +115,7 @@ def add_commands(subparsers: LazySubParsers) -> None:
         default=PACKAGING_EPISODES,
         help="episodes from random starts whose states the actions are compared on (default: %(default)s)",
     )
-    package.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    package.add_argument("--clips", default=None, help=EXPERTS_CLIPS_HELP)
     package.set_defaults(handler=_package)
 
     export = commands.add_parser(
@@ -253,6 +258,7 @@ def _train_many_batched(args: argparse.Namespace, snippets: list[str]) -> None:
 
 
 def _evaluate(args: argparse.Namespace) -> None:
+    from distill.experts.clip_library import experts_clips
     from distill.experts.evaluation import evaluate_policy
     from distill.experts.files import find_experts
     from distill.experts.loading import load_expert
@@ -262,10 +268,11 @@ def _evaluate(args: argparse.Namespace) -> None:
     if args.deterministic:
         config = dataclasses.replace(config, action_noise=0.0)
     experts = find_experts(args.experts)  # expert directories or folders of them; each snippet once
+    clips = experts_clips(experts.values(), args.clips)  # --clips, else the library the experts record
     results = []
     for snippet, expert in experts.items():
         policy = load_expert(expert.root, trust_pickle=args.trust_pickle, evaluation=args.evaluation)
-        results.append(evaluate_policy(policy, snippet, config, clips=args.clips, progress=True).to_json())
+        results.append(evaluate_policy(policy, snippet, config, clips=clips, progress=True).to_json())
     print(
         f"{config.episodes} episodes per snippet from {config.init} frames, action noise {config.action_noise}, "
         f"success: reaching the snippet's end without termination by {TERMINATION_NAMES[config.termination]}"

@@ -13,7 +13,7 @@ from foundation.config_cli import (
     dataclass_from_args,
     file_in_folder,
 )
-from mocap_hierarchy.commands import add_precision_arguments, read_json_file
+from mocap_hierarchy.commands import EXPERTS_CLIPS_HELP, add_precision_arguments, read_json_file
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
@@ -100,7 +100,7 @@ def _build_complete(parser: argparse.ArgumentParser) -> None:
     )
     source.add_argument("--policy", type=Path, help="multi-clip policy.safetensors prompting every snippet")
     parser.add_argument("--snippets", nargs="+", default=None, help="snippet ids (default: every expert's)")
-    parser.add_argument("--clips", default=None, help="clip file (default: CMU for CMU_* ids, else synthetic)")
+    parser.add_argument("--clips", default=None, help=EXPERTS_CLIPS_HELP)
     parser.add_argument(
         "--json",
         type=Path,
@@ -149,8 +149,8 @@ def _complete(args: argparse.Namespace) -> None:
             raise ValueError("give the GPT to complete with (--gpt), or only baselines (--completers prior hold)")
         path = file_in_folder(resolve_gpt(args.gpt), GPT_FILE)
         gpt = load_gpt(path)
-    prompts = _prompts(args)
-    results = complete_motions(gpt, prompts, config, clips=args.clips, progress=True)
+    prompts, clips = _prompts(args)
+    results = complete_motions(gpt, prompts, config, clips=clips, progress=True)
     print(completion_table(results))
     shipped_file = path is not None and not Path(args.gpt).exists()  # a shipped name: not beside package data
     out = args.json or (path.parent / "completion.json" if path is not None and not shipped_file else None)
@@ -168,8 +168,9 @@ def _complete(args: argparse.Namespace) -> None:
     print(f"results written to {out}")
 
 
-def _prompts(args: argparse.Namespace) -> dict:
-    """Snippet -> prompt factory, from ``--experts`` or ``--policy``."""
+def _prompts(args: argparse.Namespace) -> tuple[dict, str | None]:
+    """Snippet -> prompt factory, from ``--experts`` or ``--policy``, and the clips: ``--clips``, else the experts'."""
+    from distill.experts.clip_library import experts_clips
     from distill.gpt.completion import ExpertPrompt
     from distill.npmp.model import MultiClipPrompt, load_policy
 
@@ -180,7 +181,7 @@ def _prompts(args: argparse.Namespace) -> dict:
         policy = load_policy(path)
         if not args.snippets:
             raise ValueError("name the --snippets to complete when the multi-clip policy prompts")
-        return {snippet: (lambda rows, p=policy: MultiClipPrompt(p, rows)) for snippet in args.snippets}
+        return {snippet: (lambda rows, p=policy: MultiClipPrompt(p, rows)) for snippet in args.snippets}, args.clips
 
     from distill.experts.files import find_experts
     from distill.experts.loading import load_expert
@@ -194,7 +195,8 @@ def _prompts(args: argparse.Namespace) -> dict:
     missing = [s for s in snippets if s not in experts]
     if missing:
         raise ValueError(f"no expert for snippets {missing} in {args.experts}; it has: {', '.join(sorted(experts))}")
-    return {s: (lambda rows, root=experts[s].root: ExpertPrompt(load_expert(root))) for s in snippets}
+    prompts = {s: (lambda rows, root=experts[s].root: ExpertPrompt(load_expert(root))) for s in snippets}
+    return prompts, experts_clips([experts[s] for s in snippets], args.clips)
 
 
 def _card(args: argparse.Namespace) -> None:

@@ -72,8 +72,9 @@ def shipped_experts_stage(config: QuickstartConfig) -> dict[str, Any]:
 
     The paper's protocol at a smaller size: ``config.skill_episodes`` episodes per expert (times ``scale``)
     from random frames, with the experts' action noise of 0.1; each expert's card holds the same figures
-    over 1000 episodes (``card_reward``, ``card_length``).
+    over 1000 episodes (``card_reward``, ``card_length``). The experts track the clip library they record.
     """
+    from distill.experts.clip_library import experts_clips
     from distill.experts.config import EvaluationConfig
     from distill.experts.evaluation import evaluate_policy
     from distill.experts.loading import load_expert
@@ -84,11 +85,12 @@ def shipped_experts_stage(config: QuickstartConfig) -> dict[str, Any]:
     evaluation = EvaluationConfig(episodes=episodes, n_envs=min(10, episodes), seed=config.seed + 3000)
     print(f"\nshipped experts {config.shipped_experts}: {len(names)} experts, {episodes} episodes each")
     walker = build_walker()
+    clips = experts_clips(names)  # the library the group was trained on (None: its snippets' default)
     rows = []
     for name in names:
         expert = load_expert(name)
         snippet = name.split("/", 1)[1]
-        result = evaluate_policy(expert, snippet, evaluation, walker=walker, progress=True)
+        result = evaluate_policy(expert, snippet, evaluation, clips=clips, walker=walker, progress=True)
         scores = (expert.spec.provenance.get("model_card") or {}).get("scores", {})
         rows.append(
             {
@@ -123,6 +125,7 @@ def shipped_gpt_stage(recording: Path, config: QuickstartConfig) -> dict[str, An
     the same states (deterministic). One completion of ``config.completion_snippet`` is recorded to
     ``recording``.
     """
+    from distill.experts.clip_library import experts_clips
     from distill.experts.loading import load_expert
     from distill.gpt.completion import CompletionConfig, ExpertPrompt, complete_motions
     from distill.gpt.completion_report import overall
@@ -142,7 +145,8 @@ def shipped_gpt_stage(recording: Path, config: QuickstartConfig) -> dict[str, An
     experts = {name.split("/", 1)[1]: load_expert(name) for name in names}  # read once, prompting every completer
     prompts = {snippet: (lambda rows, expert=expert: ExpertPrompt(expert)) for snippet, expert in experts.items()}
     gpt_file = resolve_gpt(config.shipped_gpt)  # a path: the GPT shares its name with the decoder it came with
-    results = complete_motions(load_gpt(gpt_file), prompts, completion, progress=True)
+    clips = experts_clips(names)  # the library the experts were trained on (None: their snippets' default)
+    results = complete_motions(load_gpt(gpt_file), prompts, completion, clips=clips, progress=True)
     demo = f"{config.shipped_experts}/{config.completion_snippet}"
     if demo not in names:
         demo = names[0]

@@ -1,10 +1,14 @@
 """Writes the model card JSON of a trained snippet expert from its run folder, for `mocap-hierarchy expert package`.
 
-Everything on the card is read from the run: the settings (`config.json`), the kept evaluation and the final one
-over the paper's 1000 episodes (`done.json`), the training time (`progress.csv`, summed over resumed segments).
+Everything on the card is read from the run: the settings (`config.json`: the budget, the evaluation schedule, the
+network), the clip library (`clip_info.json`, or `--clips` for a run trained before experts recorded theirs), the
+kept evaluation and the final one over the paper's 1000 episodes (`done.json`), the training time (`progress.csv`,
+summed over resumed segments). The commands name the run folder and the card file as given.
 
     python tools/release/expert_card.py runs/release-v3/experts/SYN_walk_slow-0-182 --group synthetic-v3 \
         --out distill/experts/cards/synthetic-v3/SYN_walk_slow-0-182.card.json
+    python tools/release/expert_card.py runs/release-cmu-v1/experts/CMU_016_22-0-82 --group cmu-locomotion-v1 \
+        --out distill/experts/cards/cmu-locomotion-v1/CMU_016_22-0-82.card.json
 """
 
 from __future__ import annotations
@@ -15,12 +19,19 @@ import json
 from pathlib import Path
 
 PROFILE = "fast-3m-wide"
-"""The expert recipe of the synthetic release (`--profile fast-3m-wide`)."""
+"""The expert recipe of the releases (`--profile fast-3m-wide`)."""
+
+PROFILE_STEPS = {"fast-3m-wide": 3_000_000}
+"""Each recipe's own budget: a run trained for another one gets `--steps` in its command."""
 
 RECIPE_NOTE = (
     "Trained again with the recipe of the experts behind synthetic-v3 (the originals were not kept): same profile, "
     "budget and evaluation schedule, one seed (0); see docs/guides/synthetic-release.md."
 )
+"""The note of the synthetic-v3 experts' cards (the group's default `--note`)."""
+
+DEFAULT_NOTES = {"synthetic-v3": RECIPE_NOTE}
+"""The note a group's cards carry when `--note` is not given (other groups: none)."""
 
 
 def training_seconds(progress: Path) -> float:
@@ -35,14 +46,62 @@ def training_seconds(progress: Path) -> float:
     return total + last
 
 
-def expert_card(run: Path, group: str, steps_flag: str) -> dict:
-    """The card of the expert trained in ``run`` (a finished `expert train` folder)."""
+def run_settings(run: Path, done: dict) -> dict:
+    """The settings the run was trained with: `config.json`, else the copy in `done.json`."""
+    if (run / "config.json").is_file():
+        return json.loads((run / "config.json").read_text())
+    if "config" in done:
+        return done["config"]
+    raise FileNotFoundError(f"{run} holds no config.json (nor done.json a config): is it an `expert train` folder?")
+
+
+def recorded_clips(run: Path) -> str | None:
+    """The clip library the run's `clip_info.json` records (`clips`), or None (the default of its snippet)."""
+    info = run / "clip_info.json"
+    return json.loads(info.read_text()).get("clips") if info.is_file() else None
+
+
+def clips_text(snippet: str, clips: str | None) -> str:
+    """How the summary names the clips the expert tracks."""
+    if clips == "synthetic" or (clips is None and snippet.startswith("SYN_")):
+        return "the built-in synthetic clips"
+    return "the CMU 2020 clips" if clips is None else f"the clip library `{clips}`"
+
+
+def expert_card(
+    run: Path,
+    group: str,
+    card: Path | None = None,
+    clips: str | None = None,
+    note: str | None = None,
+    profile: str = PROFILE,
+) -> dict:
+    """The card of the expert trained in ``run`` (a finished `expert train` folder).
+
+    Args:
+        run: The run folder, as the commands on the card name it.
+        group: The shipped group the expert joins.
+        card: Where the card is written, as the package command names it (default:
+            `distill/experts/cards/GROUP/SNIPPET.card.json`).
+        clips: The clip library it was trained on (default: the one its `clip_info.json` records).
+        note: The card's note (default: the group's, :data:`DEFAULT_NOTES`; "" for none).
+        profile: The `--profile` it was trained with.
+    """
     done = json.loads((run / "done.json").read_text())
     snippet = done["snippet"]
+    settings = run_settings(run, done)
+    clips = clips or recorded_clips(run)
     final, kept = done["final_evaluation"], done["best"]
     tracking = final.get("tracking", {})
     minutes = training_seconds(run / "progress.csv") / 60
     name = f"{group}/{snippet}"
+    card = card or Path("distill/experts/cards") / group / f"{snippet}.card.json"
+    hidden = settings.get("ppo", {}).get("hidden_layers", [512, 512])
+    network = f"{len(hidden)} x {hidden[0]}" if len(set(hidden)) == 1 else " x ".join(map(str, hidden))
+    actions = "residual actions" if settings.get("residual_actions", True) else "absolute actions"
+    steps = settings["total_steps"]
+    steps_flag = f"--steps {steps} " if steps != PROFILE_STEPS.get(profile) else ""
+    clips_flag = f"--clips {clips} " if clips else ""
     scores = {
         "protocol": (
             f"{final['episodes']} episodes from random frames (the last 30 excluded) with action noise 0.1, "
@@ -53,11 +112,12 @@ def expert_card(run: Path, group: str, steps_flag: str) -> dict:
         "normalized_length": round(final["normalized_length"], 4),
         **{key: round(value, 4 if key == "success" else 1) for key, value in tracking.items()},
     }
+    note = DEFAULT_NOTES.get(group) if note is None else note
     return {
         "name": name,
         "summary": (
-            f"Snippet expert for `{snippet}` of the built-in synthetic clips (`--profile {PROFILE}`: 2 x 512, residual "
-            f"actions), kept at {kept['steps']:,} of {done['steps']:,} steps; tracks "
+            f"Snippet expert for `{snippet}` of {clips_text(snippet, clips)} (`--profile {profile}`: {network}, "
+            f"{actions}), kept at {kept['steps']:,} of {done['steps']:,} steps; tracks "
             f"{final['normalized_length']:.3f} of its snippet over the paper's protocol."
         ),
         "budgets": {
@@ -68,24 +128,29 @@ def expert_card(run: Path, group: str, steps_flag: str) -> dict:
         },
         "scores": scores,
         "commands": [
-            f"mocap-hierarchy expert train --snippet {snippet} --out runs/release-v3/experts --profile {PROFILE} "
-            f'{steps_flag}--eval-episodes "50@0,500@2M"',
-            f"mocap-hierarchy expert package runs/release-v3/experts/{snippet} distill/experts/pretrained/{group} "
-            f"--card distill/experts/cards/{group}/{snippet}.card.json",
+            f"mocap-hierarchy expert train --snippet {snippet} {clips_flag}--out {run.parent.as_posix()} "
+            f'--profile {profile} {steps_flag}--eval-episodes "{settings["eval_episodes"]}"',
+            f"mocap-hierarchy expert package {run.as_posix()} distill/experts/pretrained/{group} "
+            f"{clips_flag}--card {card.as_posix()}",
         ],
-        "notes": [RECIPE_NOTE],
+        **({"notes": [note]} if note else {}),
     }
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(description=str(__doc__).splitlines()[0])
     parser.add_argument("run", type=Path, help="a finished expert run folder")
     parser.add_argument("--group", default="synthetic-v3", help="the shipped group it joins")
-    parser.add_argument("--steps", type=int, default=None, help="the --steps the run was trained with, if not 3M")
+    parser.add_argument(
+        "--clips", default=None, help="the clip library it was trained on (default: what its clip_info.json records)"
+    )
+    parser.add_argument("--profile", default=PROFILE, help="the --profile it was trained with (default: %(default)s)")
+    parser.add_argument(
+        "--note", default=None, help="the card's note (default: the group's own, synthetic-v3's recipe note; '' none)"
+    )
     parser.add_argument("--out", type=Path, required=True, help="card JSON to write")
     args = parser.parse_args()
-    steps_flag = f"--steps {args.steps} " if args.steps else ""
-    card = expert_card(args.run, args.group, steps_flag)
+    card = expert_card(args.run, args.group, args.out, args.clips, args.note, args.profile)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(card, indent=2) + "\n")
     print(f"card: {args.out}")
