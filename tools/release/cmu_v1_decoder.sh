@@ -30,9 +30,9 @@ for run in $experts/*/; do
     snippet=$(basename "$run")
     [ -f "$run/done.json" ] || continue
     card=distill/experts/cards/$group/$snippet.card.json
-    [ -f "$card" ] || python tools/release/expert_card.py "$run" --group $group --out "$card"
+    [ -f "$card" ] || python tools/release/expert_card.py "$run" --group $group --clips $group --out "$card"
     [ -d distill/experts/pretrained/$group/$snippet ] ||
-        mocap-hierarchy expert package "$run" distill/experts/pretrained/$group --card "$card"
+        mocap-hierarchy expert package "$run" distill/experts/pretrained/$group --card "$card" --clips $group
 done
 
 # 2. Their rollouts (the paper's A.2 layout), as for synthetic-v3: 20 episodes from the start, 80 from random frames.
