@@ -52,7 +52,8 @@ def test_readme_timings_are_the_measured_ones():
     for key, text in spans:
         assert text == (f"{numbers[key]:.0f}" if key.endswith("_seconds") else f"{numbers[key]:.1f}"), key
     assert record["machine"]["cores"] >= 1
-    assert set(record["measured"]) == {"quickstart", "tests"}  # the date and commit of each measurement
+    assert set(record["measured"]) == {"quickstart", "tests", "example"}  # each measurement's date and commit
+    assert "example_minutes" in numbers and record["example_output"] in README.read_text()
     for name, measured in record["measured"].items():
         assert re.fullmatch(r"\d{4}-\d{2}-\d{2}", measured["date"]), name
         commit = measured["commit"].removesuffix("+changes")
