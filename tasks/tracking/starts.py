@@ -11,6 +11,7 @@ uniformly among them.
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -64,7 +65,9 @@ def possible_starts(
 ) -> tuple[list[tuple[int, int]], np.ndarray]:
     """``(snippet index, number of possible starts)`` per snippet, and the snippets' probabilities.
 
-    As in dm_control, every possible start carries its snippet's weight.
+    As in dm_control, every possible start carries its snippet's weight. A snippet too short for random starts
+    (no ``min_steps + 1`` frames after the reference's look-ahead; MoCapAct's snippets include such short ones,
+    where dm_control has no start) starts at its first frame, with a warning.
 
     Args:
         references: The tracked snippets' references.
@@ -72,8 +75,7 @@ def possible_starts(
         ref_steps: The sorted look-ahead offsets of the reference observables.
 
     Raises:
-        ValueError: The weights do not fit the snippets or are all zero, or a snippet is too short
-            for random starts.
+        ValueError: The weights do not fit the snippets or are all zero.
     """
     weights = config.snippet_weights or (1.0,) * len(references)
     if len(weights) != len(references) or min(weights) < 0:
@@ -87,12 +89,15 @@ def possible_starts(
                 reference.first_frame + reference.num_frames if reference.snippet.end is None else reference.snippet.end
             )
             count = end - int(ref_steps.max()) - config.min_steps - reference.first_frame
-            if count < 1:
-                raise ValueError(
+            if count < 1:  # dm_control would have no start at all; this snippet starts at its first frame
+                warnings.warn(
                     f"snippet {reference.snippet} is too short for random starts with ref_steps up to "
-                    f"{ref_steps.max()} and min_steps {config.min_steps}: it needs more than "
-                    f"{ref_steps.max() + config.min_steps} frames after its start"
+                    f"{ref_steps.max()} and min_steps {config.min_steps} (that needs more than "
+                    f"{ref_steps.max() + config.min_steps} frames after its start): its episodes start at its "
+                    "first frame",
+                    stacklevel=2,
                 )
+                count = 1
         ranges.append((index, count))
         mass.append(count * weight)
     total = float(sum(mass))
