@@ -7,13 +7,18 @@ What ``--policy`` may be (recognised by its content, never by unpickling):
   (``synthetic-v3/SYN_walk_slow-0-182``): its deterministic actions, on the
   tracking or motion-completion task of its snippet, on the clip library it
   records (unless ``--set clips=...`` names other clips);
-* a multi-clip ``policy.safetensors`` (``distill train``): tracking with its
-  reference look-ahead and deterministic latents;
+* a multi-clip ``policy.safetensors`` (``distill train``) or a shipped multi-clip
+  policy's name (``cmu-v1``): tracking with its reference look-ahead and
+  deterministic latents;
 * a task ``policy.safetensors`` (``transfer train``) or a shipped task policy's
   name (``synthetic-v3/velocity_control``): its task, through its decoder when it
   has one (the latent ``z`` is recorded too);
 * a ``decoder.safetensors`` or a shipped decoder's name: random latents through the decoder;
 * a ``gpt.safetensors``: motion completion, prompted by ``--prompt EXPERT_DIR`` (or an expert's name).
+
+A name several kinds share goes to the first of :data:`distill.catalogue.POLICY_KINDS` (a decoder
+first), except on the tracking task, where a multi-clip policy comes before the decoder of its name
+(:data:`distill.catalogue.TRACKING_POLICY_KINDS`): it tracks the clip, where the decoder would act at random.
 """
 
 from __future__ import annotations
@@ -30,7 +35,7 @@ import gymnasium as gym
 import numpy as np
 
 import tasks
-from distill.catalogue import POLICY_HINT_KINDS, POLICY_KINDS, catalogue
+from distill.catalogue import POLICY_HINT_KINDS, POLICY_KINDS, TRACKING_POLICY_KINDS, catalogue
 from foundation.described_file import METADATA_KEY
 from foundation.shipped import Entry
 
@@ -38,16 +43,24 @@ Act = Callable[[dict[str, np.ndarray]], np.ndarray]
 Rollout = tuple[gym.Env, Act, Callable[[], None] | None]
 """An environment, ``act(observation) -> action``, and what to run after each reset (or None)."""
 TRACKING_TASKS = ("tracking", "tracking_expert", "motion_completion")
-KIND_FORMATS = {"decoder": "decoder", "task policy": "task_policy", "expert": "expert"}
+KIND_FORMATS = {
+    "decoder": "decoder",
+    "multi-clip policy": "multi_clip_policy",
+    "task policy": "task_policy",
+    "expert": "expert",
+}
 """The file format each kind of shipped policy has; an expert group has none (record refuses it as a folder)."""
 
 
-def policy_entry(policy: str) -> Entry | None:
+def policy_entry(policy: str, task: str | None = None) -> Entry | None:
     """What the shipped name ``policy`` is (:data:`distill.catalogue.POLICY_KINDS`, first wins), or None.
 
-    None too when ``policy`` is an existing path, which always wins over a name.
+    On ``task`` ``tracking`` the kinds are tried in :data:`distill.catalogue.TRACKING_POLICY_KINDS` order (a
+    multi-clip policy before the decoder of its name). None too when ``policy`` is an existing path, which
+    always wins over a name.
     """
-    return None if Path(policy).exists() else catalogue().lookup(policy, POLICY_KINDS)
+    kinds = TRACKING_POLICY_KINDS if task == "tracking" else POLICY_KINDS
+    return None if Path(policy).exists() else catalogue().lookup(policy, kinds)
 
 
 def file_format(path: Path) -> str:
@@ -85,7 +98,7 @@ def build_rollout(
         ValueError: A policy that cannot drive ``task``, with what would.
     """
     overrides = dict(overrides or {})
-    entry = policy_entry(policy)  # looked up once: an existing path, else a shipped name, else as given
+    entry = policy_entry(policy, task)  # looked up once: an existing path, else a shipped name, else as given
     path = entry.path if entry else Path(policy)
     kind = (entry and KIND_FORMATS.get(entry.kind)) or file_format(path)
     if kind == "random":

@@ -9,9 +9,10 @@ import pytest
 
 import distill.experts.shipped as experts
 import distill.gpt.shipped as gpts
+import distill.npmp.shipped as multi_clip
 import hierarchy.pretrained as pretrained
 import tasks.clips.importers.joint_map as joint_map
-from distill.catalogue import KINDS, POLICY_KINDS, catalogue
+from distill.catalogue import KINDS, POLICY_KINDS, TRACKING_POLICY_KINDS, catalogue
 from mocap_hierarchy.cli import main
 from mocap_hierarchy.record import build_rollout, policy_entry
 
@@ -21,6 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 def on_disk() -> set[tuple[str, str]]:
     """``(kind, file)`` of every shipped file found by walking the package folders, apart from the catalogue."""
     found = {("decoder", p) for p in (ROOT / "hierarchy/pretrained").glob("*.safetensors")}
+    found |= {("multi-clip policy", p) for p in (ROOT / "distill/npmp/pretrained").glob("*.safetensors")}
     found |= {("task policy", p) for p in (ROOT / "hierarchy/pretrained/policies").glob("*/*.safetensors")}
     found |= {("latent prior", p) for p in (ROOT / "hierarchy/pretrained/priors").glob("*.safetensors")}
     found |= {("expert", p.parent) for p in (ROOT / "distill/experts/pretrained").glob("*/*/clip_info.json")}
@@ -34,7 +36,8 @@ def on_disk() -> set[tuple[str, str]]:
 def test_the_catalogue_lists_every_shipped_file_of_every_kind():
     listed = {(e.kind, e.path.resolve().relative_to(ROOT).as_posix()) for e in catalogue().entries()}
     assert listed == on_disk()
-    assert {kind for kind, _ in listed} == set(KINDS)  # every kind ships at least one artifact today
+    not_yet = {"multi-clip policy"}  # the first ships with the real release (cmu-v1)
+    assert {kind for kind, _ in listed} == set(KINDS) - not_yet  # every other kind ships an artifact today
 
 
 def test_names_are_unique_within_a_kind_and_shared_across_kinds_only_as_today():
@@ -48,10 +51,15 @@ def test_names_are_unique_within_a_kind_and_shared_across_kinds_only_as_today():
 
 @pytest.fixture
 def planted(tmp_path, monkeypatch):
-    """One artifact of every globbed kind in fresh package folders, ``tiny-v1`` a decoder, prior, GPT and group."""
-    decoders, expert_folder, gpt_folder, maps = (tmp_path / n for n in ("pretrained", "experts", "gpts", "maps"))
+    """One artifact of every globbed kind in fresh package folders.
+
+    ``tiny-v1`` is a decoder, a multi-clip policy, a latent prior, a motion GPT and an expert group.
+    """
+    names = ("pretrained", "experts", "gpts", "maps", "multi-clip")
+    decoders, expert_folder, gpt_folder, maps, policies = (tmp_path / n for n in names)
     for path in (
         decoders / "tiny-v1.safetensors",
+        policies / "tiny-v1.safetensors",
         decoders / "priors" / "tiny-v1.safetensors",
         decoders / "policies" / "tiny-v1" / "go_to_target.safetensors",
         expert_folder / "tiny-v1" / "SYN_wave-0-9" / "clip_info.json",
@@ -66,6 +74,7 @@ def planted(tmp_path, monkeypatch):
     monkeypatch.setattr(experts, "SHIPPED_EXPERTS_FOLDER", expert_folder)
     monkeypatch.setattr(gpts, "SHIPPED_GPTS_FOLDER", gpt_folder)
     monkeypatch.setattr(joint_map, "JOINT_MAPS_FOLDER", maps)
+    monkeypatch.setattr(multi_clip, "SHIPPED_POLICIES_FOLDER", policies)
     return tmp_path
 
 
@@ -73,6 +82,7 @@ def test_a_file_added_to_a_package_folder_appears_with_its_kind_and_card(planted
     entries = {(e.kind, e.name): e for e in catalogue().entries()}
     assert set(entries) == {
         ("decoder", "tiny-v1"),
+        ("multi-clip policy", "tiny-v1"),
         ("task policy", "tiny-v1/go_to_target"),
         ("expert", "tiny-v1/SYN_wave-0-9"),
         ("expert group", "tiny-v1"),
@@ -84,22 +94,38 @@ def test_a_file_added_to_a_package_folder_appears_with_its_kind_and_card(planted
     assert entries["decoder", "tiny-v1"].card == planted / "pretrained" / "cards" / "tiny-v1.card.json"
     assert entries["expert", "tiny-v1/SYN_wave-0-9"].card == planted / "cards" / "tiny-v1" / "SYN_wave-0-9.card.json"
     assert entries["task policy", "tiny-v1/go_to_target"].card is None  # no card source beside it
-    assert catalogue().kinds_of("tiny-v1/") == ["decoder", "expert group", "latent prior", "motion GPT"]
+    assert entries["multi-clip policy", "tiny-v1"].card is None
+    kinds = ["decoder", "multi-clip policy", "expert group", "latent prior", "motion GPT"]
+    assert catalogue().kinds_of("tiny-v1/") == kinds
 
 
 def test_record_takes_the_first_policy_kind_of_a_shared_name_as_it_always_has(planted):
-    assert POLICY_KINDS == ("decoder", "task policy", "expert", "expert group")
+    assert POLICY_KINDS == ("decoder", "multi-clip policy", "task policy", "expert", "expert group")
     decoder = policy_entry("tiny-v1")
     assert decoder is not None and decoder.kind == "decoder"  # not the GPT, prior or group of the same name
+    assert policy_entry("tiny-v1", "velocity_control") == decoder
     (planted / "pretrained" / "tiny-v1.safetensors").unlink()
+    policy = policy_entry("tiny-v1")
+    assert policy is not None and policy.kind == "multi-clip policy"
+    (planted / "multi-clip" / "tiny-v1.safetensors").unlink()
     group = policy_entry("tiny-v1")
     assert group is not None and group.kind == "expert group"  # then the group, which record refuses as a folder
     with pytest.raises(ValueError, match="is a folder but not an expert directory"):
         build_rollout("tracking", "tiny-v1")
     shutil.rmtree(planted / "experts" / "tiny-v1")
     assert policy_entry("tiny-v1") is None  # a GPT or a prior alone is no policy name
-    with pytest.raises(FileNotFoundError, match="no decoder is shipped with this installation; shipped task polic"):
+    none = "no decoder is shipped with this installation; no multi-clip policy is shipped with this installation"
+    with pytest.raises(FileNotFoundError, match=f"{none}; shipped task polic"):
         build_rollout("tracking", "tiny-v1")
+
+
+def test_on_the_tracking_task_record_plays_the_multi_clip_policy_of_a_decoder_name(planted):
+    assert set(TRACKING_POLICY_KINDS) == set(POLICY_KINDS) and TRACKING_POLICY_KINDS[0] == "multi-clip policy"
+    tracker = policy_entry("tiny-v1", "tracking")
+    assert tracker is not None and tracker.kind == "multi-clip policy"  # it tracks; the decoder would act at random
+    assert tracker.path == planted / "multi-clip" / "tiny-v1.safetensors"
+    (planted / "multi-clip" / "tiny-v1.safetensors").unlink()
+    assert policy_entry("tiny-v1", "tracking").kind == "decoder"  # type: ignore[union-attr]
 
 
 def test_record_resolves_each_kind_through_the_catalogue():
@@ -120,8 +146,9 @@ def test_an_existing_path_wins_over_a_name(tmp_path, monkeypatch):
 
 
 def test_an_unknown_policy_lists_the_names_record_takes():
-    hint = catalogue().hint("decoder", "task policy", "expert")
+    hint = catalogue().hint("decoder", "multi-clip policy", "task policy", "expert")
     assert hint.startswith("shipped decoders: synthetic-v1") and "(groups, each naming all its experts" in hint
+    assert "; no multi-clip policy is shipped with this installation; shipped task policies: " in hint
     with pytest.raises(FileNotFoundError) as error:
         build_rollout("tracking", "nope")
     assert (

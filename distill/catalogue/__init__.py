@@ -7,9 +7,11 @@ kinds (``mocap-hierarchy record --policy NAME``), for ``mocap-hierarchy models``
 site's model pages. It lives on the ``distill`` floor, the lowest that sees every kind's folder.
 
 Names are unique within a kind, not across kinds: ``synthetic-v3`` is a decoder, a latent prior,
-an expert group and a motion GPT. Whoever looks a name up says which kinds it means, and the first
-of them in :data:`KINDS` order wins (:data:`POLICY_KINDS`: a decoder before a task policy before an
-expert before an expert group).
+an expert group and a motion GPT, and a multi-clip policy is named after the decoder it contains.
+Whoever looks a name up says which kinds it means, and the first of them in :data:`KINDS` order wins
+(:data:`POLICY_KINDS`: a decoder before a multi-clip policy before a task policy before an expert
+before an expert group), but on the tracking task, where a multi-clip policy tracks the clip and its
+decoder would act at random, the multi-clip policy of a name comes first (:data:`TRACKING_POLICY_KINDS`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from foundation.shipped import Catalogue
 
 KINDS = (
     "decoder",
+    "multi-clip policy",
     "task policy",
     "expert",
     "expert group",
@@ -28,10 +31,13 @@ KINDS = (
 )
 """Every kind of shipped artifact, in the order that settles a name several kinds share."""
 
-POLICY_KINDS = ("decoder", "task policy", "expert", "expert group")
+POLICY_KINDS = ("decoder", "multi-clip policy", "task policy", "expert", "expert group")
 """The kinds ``record --policy NAME`` takes by name, in the order it tries them (a GPT only as a file)."""
 
-POLICY_HINT_KINDS = ("decoder", "task policy", "expert")
+TRACKING_POLICY_KINDS = ("multi-clip policy", "decoder", "task policy", "expert", "expert group")
+"""The order ``record --task tracking --policy NAME`` tries them: a multi-clip policy before the decoder it contains."""
+
+POLICY_HINT_KINDS = ("decoder", "multi-clip policy", "task policy", "expert")
 """The kinds whose names ``record`` lists for an unknown policy (the experts' list names their groups too)."""
 
 
@@ -39,6 +45,7 @@ def catalogue() -> Catalogue:
     """The shipped artifacts of this installation, read from the package folders now."""
     from distill.experts.shipped import expert_group_shelf, expert_shelf
     from distill.gpt.shipped import gpt_shelf
+    from distill.npmp.shipped import policy_shelf
     from hierarchy.latent_prior import prior_shelf
     from hierarchy.pretrained import shipped_decoders, task_policy_shelf
     from tasks.clips.importers.joint_map import shipped_joint_maps
@@ -46,6 +53,7 @@ def catalogue() -> Catalogue:
 
     shelves = (
         shipped_decoders(),
+        policy_shelf(),
         task_policy_shelf(),
         expert_shelf(),
         expert_group_shelf(),

@@ -1,4 +1,7 @@
-"""The multi-clip policy (the paper's B.2): encoder and decoder, distillation, evaluation."""
+"""The multi-clip policy (the paper's B.2): encoder and decoder, distillation, evaluation, packaging for shipping.
+
+Shipped multi-clip policies load by name (``load_policy("NAME")``), with their model cards.
+"""
 
 from typing import TYPE_CHECKING
 
@@ -8,6 +11,8 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from distill.npmp.config import NpmpConfig, OnlineDistillConfig, PolicyEvaluationConfig, default_sampler
     from distill.npmp.evaluation import evaluate_multi_clip, fraction_of_experts
     from distill.npmp.model import MultiClipPrompt, NpmpPolicy, NpmpSpec, load_policy
+    from distill.npmp.packaging import PackagedPolicy, package_policy
+    from distill.npmp.shipped import shipped_policies
     from distill.npmp.training import DistillResult, train_npmp
 
 __all__ = [
@@ -17,11 +22,14 @@ __all__ = [
     "NpmpPolicy",
     "NpmpSpec",
     "OnlineDistillConfig",
+    "PackagedPolicy",
     "PolicyEvaluationConfig",
     "default_sampler",
     "evaluate_multi_clip",
     "fraction_of_experts",
     "load_policy",
+    "package_policy",
+    "shipped_policies",
     "train_npmp",
 ]
 
@@ -34,11 +42,14 @@ __getattr__, __dir__ = lazy_exports(
         "NpmpPolicy": "distill.npmp.model",
         "NpmpSpec": "distill.npmp.model",
         "OnlineDistillConfig": "distill.npmp.config",
+        "PackagedPolicy": "distill.npmp.packaging",
         "PolicyEvaluationConfig": "distill.npmp.config",
         "default_sampler": "distill.npmp.config",
         "evaluate_multi_clip": "distill.npmp.evaluation",
         "fraction_of_experts": "distill.npmp.evaluation",
         "load_policy": "distill.npmp.model",
+        "package_policy": "distill.npmp.packaging",
+        "shipped_policies": "distill.npmp.shipped",
         "train_npmp": "distill.npmp.training",
     },
 )

@@ -14,6 +14,15 @@ from foundation.activations import ACTIVATION_NAMES
 from foundation.schedule import Schedule
 from tasks.observable_sets import DECODER, OBSERVABLE_SETS
 
+PACKAGING_TOLERANCE = 2e-3
+"""Largest change of an action that float16 weights may cause before ``distill package`` refuses.
+
+A decoder's float16 weights alone move its actions by about 1e-3 (the shipped decoders'); the encoder's rounding
+adds to it through the latent, so the whole policy is allowed twice that."""
+
+PACKAGING_OBSERVATIONS = 4096
+"""Observations (with previous latents) the float32 and float16 multi-clip policies are compared on when packaging."""
+
 
 @dataclass(frozen=True)
 class PolicyEvaluationConfig:

@@ -21,7 +21,7 @@ sampler does it); the exported :class:`hierarchy.LatentDecoder` carries the
 same statistics and standardises raw observations itself.
 
 The whole policy (for evaluation on clips) saves as one safetensors file with
-JSON metadata, like the decoder file.
+JSON metadata, like the decoder file; a shipped one (:mod:`distill.npmp.shipped`) loads by name.
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ import torch
 from torch import nn
 
 from distill.npmp.config import NpmpConfig  # defined there (light), used and re-exported here
+from distill.npmp.shipped import names_hint, resolve_policy
 from foundation.described_file import check_layout, read_described, write_described
 from foundation.json_fields import dataclass_from_json
 from foundation.networks import mlp
@@ -49,6 +50,8 @@ from tasks.observables import flat_batch
 POLICY_FORMAT = "mocap_hierarchy.multi_clip_policy"
 POLICY_SCHEMA_VERSION = 2
 """2 added the learned prior (``prior``, ``prior_layers`` and its ``prior.*`` tensors)."""
+NORMALISERS = ("encoder_mean", "encoder_std", "decoder_mean", "decoder_std")
+"""The float32 tensors of the observations' standardisation, beside the networks' weights."""
 
 
 @dataclass(frozen=True)
@@ -261,9 +264,18 @@ class NpmpPolicy(nn.Module):
         spec = self.prior_spec(decoder.behaviour_sha256(), provenance(dated=False, **facts))
         return LatentPrior(spec, self.decoder_mean.cpu(), self.decoder_std.cpu(), state).freeze()
 
-    def save(self, path: str | os.PathLike) -> Path:
-        """Writes the whole policy (weights, normalisers, :class:`NpmpSpec`) atomically."""
-        return write_described(path, dict(self.state_dict()), POLICY_FORMAT, POLICY_SCHEMA_VERSION, asdict(self.spec))
+    def save(self, path: str | os.PathLike, weight_dtype: torch.dtype = torch.float32) -> Path:
+        """Writes the whole policy (weights, normalisers, :class:`NpmpSpec`) atomically.
+
+        Args:
+            path: The file to write.
+            weight_dtype: ``torch.float32`` or ``torch.float16`` for the networks' weights (a packaged policy's,
+                :mod:`distill.npmp.packaging`); the normalisers stay float32, and loading widens the weights.
+        """
+        if weight_dtype not in (torch.float32, torch.float16):
+            raise ValueError(f"multi-clip policy weights are stored as float32 or float16, not {weight_dtype}")
+        tensors = {k: v if k in NORMALISERS else v.to(weight_dtype) for k, v in self.state_dict().items()}
+        return write_described(path, tensors, POLICY_FORMAT, POLICY_SCHEMA_VERSION, asdict(self.spec))
 
 
 class MultiClipPrompt:
@@ -299,16 +311,21 @@ class PolicyFileError(ValueError):
 
 
 def load_policy(path: str | os.PathLike) -> NpmpPolicy:
-    """Reads a file written by :meth:`NpmpPolicy.save` (no pickle).
+    """Reads a file written by :meth:`NpmpPolicy.save` (no pickle), or a shipped multi-clip policy by name.
 
     Checked like a decoder file (:func:`hierarchy.decoder.load_decoder`): every field, every tensor's
     shape against the declared networks before they are built, no NaN or infinite value, finite
-    actions at the mean observations.
+    actions at the mean observations. Float16 weights (a packaged policy's) are widened to float32.
+
+    Args:
+        path: The file, or a shipped multi-clip policy's name (:mod:`distill.npmp.shipped`; an existing
+            path wins).
 
     Raises:
-        FileNotFoundError: No such file.
+        FileNotFoundError: No such file or shipped name (the message lists the shipped names).
         PolicyFileError: Another format, a newer schema or damaged content (naming the file and what is wrong).
     """
+    path = resolve_policy(path)
     remedy = "; copy it again, or train one with `mocap-hierarchy distill train`"
     description, tensors = read_described(
         path,
@@ -316,7 +333,7 @@ def load_policy(path: str | os.PathLike) -> NpmpPolicy:
         POLICY_SCHEMA_VERSION,
         "multi-clip policy",
         error=PolicyFileError,
-        missing_hint=" (`mocap-hierarchy distill train` writes it)",
+        missing_hint=f" (`mocap-hierarchy distill train` writes it; {names_hint()})",
         remedy=remedy,
         finite=True,
     )
@@ -338,7 +355,7 @@ def load_policy(path: str | os.PathLike) -> NpmpPolicy:
                 raise PolicyFileError(f"{where}: tensor {name} is {found}; the description needs ({size},) values")
         if not bool((tensors[f"{part}_std"] > 0).all()):
             raise PolicyFileError(f"{where}: tensor {part}_std holds values that are not positive{remedy}")
-    statistics = [tensors[name] for name in ("encoder_mean", "encoder_std", "decoder_mean", "decoder_std")]
+    statistics = [tensors[name] for name in NORMALISERS]
     check_layout(
         lambda: NpmpPolicy(spec, *statistics),
         tensors,
@@ -385,11 +402,7 @@ def start_from(policy: NpmpPolicy, path: str | os.PathLike) -> None:
     loaded = load_policy(path)
     mine, theirs = asdict(policy.spec), asdict(loaded.spec)
     differing = [name for name in mine if name != "provenance" and _plain(mine[name]) != _plain(theirs[name])]
-    differing += [
-        name
-        for name in ("encoder_mean", "encoder_std", "decoder_mean", "decoder_std")
-        if not torch.equal(getattr(policy, name).cpu(), getattr(loaded, name))
-    ]
+    differing += [name for name in NORMALISERS if not torch.equal(getattr(policy, name).cpu(), getattr(loaded, name))]
     if differing:
         raise PolicyFileError(
             f"{path} cannot be a starting point here: its {', '.join(differing)} differ from this run's; start from "

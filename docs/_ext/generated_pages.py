@@ -10,7 +10,9 @@
 * ``models/clips-NAME.md``: each shipped real clip library, its composition and playback figures
   (:mod:`clip_library_pages`);
 * ``models/expert-GROUP-SNIPPET.md`` and ``models/gpt-NAME.md``: the card of every shipped snippet expert and motion
-  GPT (what ``expert card`` and ``gpt card`` print), and ``models/snippet-experts.md`` listing the experts.
+  GPT (what ``expert card`` and ``gpt card`` print), and ``models/snippet-experts.md`` listing the experts;
+* ``models/multi-clip-NAME.md``: the card of every shipped multi-clip policy (what ``distill card`` prints); none
+  is shipped yet, so none is written (the first shipped one needs its line in ``models/index.md``'s contents).
 
 Sphinx writes them before reading the sources (``builder-inited``); the files are ignored by git.
 ``python docs/_ext/generated_pages.py`` writes them without building the site.
@@ -286,6 +288,7 @@ def card_of_file(path: Path) -> str:
 
 PAGE_KINDS = {
     "decoder": "decoder",
+    "multi-clip policy": "multi-clip",
     "latent prior": "prior",
     "task policy": "policy",
     "expert": "expert",
@@ -295,12 +298,12 @@ PAGE_KINDS = {
 
 
 def model_pages() -> dict[str, str]:
-    """``{file name: page}`` of every shipped decoder, prior, task policy, snippet expert and motion GPT.
+    """``{file name: page}`` of every shipped decoder, multi-clip policy, prior, task policy, expert and GPT.
 
-    ``NAME.md``, ``NAME-prior.md``, ``task-policy-DECODER-TASK.md``, ``expert-GROUP-SNIPPET.md`` and
-    ``gpt-NAME.md`` (none of a kind that is not shipped).
+    ``NAME.md``, ``multi-clip-NAME.md``, ``NAME-prior.md``, ``task-policy-DECODER-TASK.md``,
+    ``expert-GROUP-SNIPPET.md`` and ``gpt-NAME.md`` (none of a kind that is not shipped).
     """
-    import distill.cards  # noqa: F401  (registers the expert and GPT card builders)
+    import distill.cards  # noqa: F401  (registers the expert, GPT and multi-clip policy card builders)
     from distill.catalogue import catalogue
     from distill.experts.files import ExpertDir
     from hierarchy.cards.markdown import card_page_name

@@ -146,23 +146,25 @@ def card_page_name(name: str, kind: str = "decoder") -> str:
 
     ``kind`` ``policy``: of shipped task policy ``name`` (``synthetic-v3/velocity_control`` has
     ``task-policy-synthetic-v3-velocity_control.md``); ``expert``: of shipped snippet expert ``name``
-    (``expert-synthetic-v3-SYN_walk_slow-0-182.md``); ``gpt``: of shipped motion GPT ``name`` (``gpt-NAME.md``).
+    (``expert-synthetic-v3-SYN_walk_slow-0-182.md``); ``gpt``: of shipped motion GPT ``name`` (``gpt-NAME.md``);
+    ``multi-clip``: of shipped multi-clip policy ``name`` (``multi-clip-NAME.md``).
     """
-    if kind in ("policy", "expert", "gpt"):
+    if kind in ("policy", "expert", "gpt", "multi-clip"):
         return f"{'task-policy' if kind == 'policy' else kind}-{name.replace('/', '-')}.md"
     return f"{name}-prior.md" if kind == "prior" else f"{name}.md"
 
 
-def float16_lines(facts: FileFacts, kind: str, command: str, where: str = "") -> list[str]:
-    """The limitation every card of a file with float16 ``net.*`` weights states (none for other files).
+def float16_lines(facts: FileFacts, kind: str, command: str, where: str = "", weights: str = "net.") -> list[str]:
+    """The limitation every card of a file with float16 weights states (none for other files).
 
     Args:
         facts: The file's facts.
         kind: What the file holds (``decoder``, ``expert``, ``GPT``).
         command: The command that packaged it and printed the largest difference.
         where: On what that difference was measured, if worth saying (`` on real token windows``).
+        weights: The prefix of the weights' tensors (``net.``; ``decoder.`` for a multi-clip policy's).
     """
-    if facts.dtype_of("net.") != "float16":
+    if facts.dtype_of(weights) != "float16":
         return []
     return [
         f"- Its weights are stored as float16: its actions differ slightly from those of the float32 {kind} it was "

@@ -51,7 +51,9 @@ def add_commands(subparsers: LazySubParsers) -> None:
         "fit-prior",
         help="fit a state-conditioned latent prior to a multi-clip policy (high-level policies can act around it)",
     )
-    prior.add_argument("policy", type=Path, help="the multi-clip policy.safetensors the decoder came from")
+    prior.add_argument(
+        "policy", type=Path, help="the multi-clip policy.safetensors the decoder came from (or a shipped one's name)"
+    )
     prior.add_argument("decoder", help=DECODER_HELP)
     prior.add_argument("out", type=Path, help="prior file to write (.safetensors)")
     prior.add_argument("--data", type=Path, default=None, help="rollout dataset: record on its snippets")

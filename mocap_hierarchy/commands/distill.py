@@ -1,4 +1,4 @@
-"""``mocap-hierarchy distill``: the multi-clip policy (writes the decoder file) and its evaluation."""
+"""``mocap-hierarchy distill``: the multi-clip policy (writes the decoder file), its evaluation, packaging and card."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import argparse
 import dataclasses
 from pathlib import Path
 
-from distill.npmp.config import PolicyEvaluationConfig
+from distill.npmp.config import PACKAGING_OBSERVATIONS, PACKAGING_TOLERANCE, PolicyEvaluationConfig
 from foundation.config_cli import (
     LazySubParsers,
     add_dataclass_arguments,
@@ -15,18 +15,27 @@ from foundation.config_cli import (
     file_in_folder,
     given_fields,
 )
+from mocap_hierarchy.commands import add_precision_arguments, read_json_file
+
+POLICY_HELP = (
+    "policy.safetensors, the distillation folder holding it, or a shipped multi-clip policy's name "
+    "(`mocap-hierarchy models --kind 'multi-clip policy'`)"
+)
+"""How every ``distill`` command that takes a multi-clip policy describes the argument."""
 
 
 def add_commands(subparsers: LazySubParsers) -> None:
-    """Registers ``distill train`` (flags added when it is chosen) and ``distill eval``."""
-    distill = subparsers.add_parser("distill", help="multi-clip policy: train (writes the decoder file), evaluate")
+    """Registers ``distill train`` (flags added when it is chosen), ``eval``, ``package`` and ``card``."""
+    distill = subparsers.add_parser(
+        "distill", help="multi-clip policy: train (writes the decoder file), evaluate, package, card"
+    )
     distill_commands = add_subcommands(distill, dest="distill_command", required=True, metavar="COMMAND")
     distill_commands.add_lazy_parser(
         "train", _build_train, help="distill the rollout dataset into the multi-clip policy (torchrun for many GPUs)"
     )
 
     evaluate_npmp = distill_commands.add_parser("eval", help="roll the multi-clip policy out on snippets or clips")
-    evaluate_npmp.add_argument("policy", type=Path, help="policy.safetensors (or the distillation folder)")
+    evaluate_npmp.add_argument("policy", type=Path, help=POLICY_HELP)
     evaluate_npmp.add_argument("--data", type=Path, default=None, help="rollout dataset: its snippets and experts")
     evaluate_npmp.add_argument("--snippets", nargs="+", default=None, help="snippet or clip ids (default: the data's)")
     evaluate_npmp.add_argument(
@@ -38,6 +47,37 @@ def add_commands(subparsers: LazySubParsers) -> None:
     evaluate_npmp.add_argument("--json", type=Path, default=None, help="write the results here")
     add_dataclass_arguments(evaluate_npmp, PolicyEvaluationConfig)
     evaluate_npmp.set_defaults(handler=_distill_eval)
+
+    package = distill_commands.add_parser(
+        "package", help="write a multi-clip policy with a model card attached (float16 weights by default) for shipping"
+    )
+    package.add_argument("policy", type=Path, help=POLICY_HELP)
+    package.add_argument(
+        "out", type=Path, help="file to write (distill/npmp/pretrained/NAME.safetensors ships it as NAME)"
+    )
+    package.add_argument(
+        "--card", type=Path, required=True, help="model card JSON, a decoder card's fields (hierarchy.cards.model_card)"
+    )
+    package.add_argument(
+        "--scores", type=Path, default=None, help="`distill eval --json` file whose scores fill the card"
+    )
+    add_precision_arguments(package, PACKAGING_TOLERANCE, "an action")
+    package.add_argument(
+        "--observations",
+        type=int,
+        default=PACKAGING_OBSERVATIONS,
+        help="observations the float32 and float16 policies' actions are compared on (default: %(default)s)",
+    )
+    package.set_defaults(handler=_package)
+
+    card = distill_commands.add_parser(
+        "card", help="write a multi-clip policy's model card as Markdown (from the policy file itself)"
+    )
+    card.add_argument("policy", type=Path, help=POLICY_HELP)
+    card.add_argument(
+        "--out", type=Path, default=None, help="Markdown file, or a folder for FOLDER/MODEL_CARD.md (default: print)"
+    )
+    card.set_defaults(handler=_card)
 
 
 def _build_train(parser: argparse.ArgumentParser) -> None:
@@ -88,16 +128,61 @@ def _distill_train(args: argparse.Namespace) -> None:
     )
 
 
+def _policy_file(source: Path) -> Path:
+    """The multi-clip policy file an argument names: a file, a distillation folder's, or a shipped name's.
+
+    An unknown name comes back as a path; loading it raises the error that lists the shipped names.
+    """
+    from distill.npmp.shipped import resolve_policy
+    from distill.npmp.training import POLICY_FILE
+
+    return file_in_folder(resolve_policy(source), POLICY_FILE)
+
+
+def _package(args: argparse.Namespace) -> None:
+    from distill.npmp.packaging import package_policy
+    from hierarchy.cards.model_card import card_with_scores, check_card
+
+    card = check_card(read_json_file(args.card), str(args.card))
+    if args.scores is not None:
+        card = card_with_scores(card, read_json_file(args.scores, "scores file"))
+    packaged = package_policy(
+        _policy_file(args.policy),
+        args.out,
+        card,
+        float16=not args.float32,
+        tolerance=args.tolerance,
+        observations=args.observations,
+    )
+    path, weights = packaged.path, "float32" if args.float32 else "float16"
+    print(
+        f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, {weights} weights); largest action difference from "
+        f"the source policy: {packaged.largest_action_difference:.2e} over {packaged.observations} observations"
+    )
+
+
+def _card(args: argparse.Namespace) -> None:
+    import distill.cards  # noqa: F401  (registers the multi-clip policy's card builder)
+    from distill.npmp.shipped import names_hint
+    from hierarchy.cards.page import card_page, write_card
+
+    source = _policy_file(args.policy)
+    if not source.is_file():
+        raise FileNotFoundError(f"multi-clip policy file {source} does not exist ({names_hint()})")
+    if args.out is None:
+        print(card_page(source))
+        return
+    print(f"wrote {write_card(source, args.out)}")
+
+
 def _distill_eval(args: argparse.Namespace) -> None:
     from distill.dataset.reader import RolloutDataset
     from distill.npmp.evaluation import evaluate_multi_clip, fraction_of_experts
     from distill.npmp.model import load_policy
-    from distill.npmp.training import POLICY_FILE
     from tasks.tracking.metrics import TABLE_COLUMNS, TERMINATION_NAMES, aggregate, metrics_table
 
     config = dataclass_from_args(PolicyEvaluationConfig, args)
-    path = file_in_folder(args.policy, POLICY_FILE)
-    policy = load_policy(path)
+    policy = load_policy(_policy_file(args.policy))
     experts, clips = {}, args.clips
     if args.data is not None:
         dataset = RolloutDataset(args.data)

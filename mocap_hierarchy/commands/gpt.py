@@ -98,7 +98,9 @@ def _build_complete(parser: argparse.ArgumentParser) -> None:
         type=Path,
         help="folder of expert directories, or a shipped group's name (synthetic-v3): each prompts its own snippet",
     )
-    source.add_argument("--policy", type=Path, help="multi-clip policy.safetensors prompting every snippet")
+    source.add_argument(
+        "--policy", type=Path, help="multi-clip policy.safetensors (or a shipped one's name) prompting every snippet"
+    )
     parser.add_argument("--snippets", nargs="+", default=None, help="snippet ids (default: every expert's)")
     parser.add_argument("--clips", default=None, help=EXPERTS_CLIPS_HELP)
     parser.add_argument(

@@ -18,7 +18,8 @@ def add_commands(subparsers: LazySubParsers) -> None:
         "--policy",
         required=True,
         help="random, an expert directory, a policy/decoder/GPT .safetensors file, or the name of a shipped decoder "
-        "(synthetic-v3), task policy (synthetic-v3/velocity_control) or expert (synthetic-v3/SYN_walk_slow-0-182)",
+        "(synthetic-v3), multi-clip policy (on --task tracking it comes before the decoder of its name), task policy "
+        "(synthetic-v3/velocity_control) or expert (synthetic-v3/SYN_walk_slow-0-182)",
     )
     record.add_argument("--out", type=Path, required=True, help="the .rrd file to write")
     record.add_argument("--episodes", type=int, default=1, help="episodes to record (default: 1)")
