@@ -8,13 +8,20 @@
 # (velocity control in any direction and go-to-target, three seeds each, one decoder per core).
 # Resumable: rerun it after a kill; every finished step is skipped (each command resumes or its output exists).
 # Where it stands: the files under runs/release-cmu-v1/ (dataset/, distill/, eval_*.json, transfer/).
+# A rehearsal at tiny budgets, writing nothing into the package (about 10 minutes on 2 cores):
+#   PARTIAL=1 OUT=/tmp/rehearsal PRETRAINED=/tmp/rehearsal/experts CARDS=/tmp/rehearsal/cards STEPS=20 \
+#   TRANSFER_STEPS=4096 ROLLOUTS="--n-start 1 --n-rsi 1" EPISODES=2 tools/release/cmu_v1_decoder.sh
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 export OMP_NUM_THREADS=1
 [ -z "${VIRTUAL_ENV:-}" ] && [ -f .venv/bin/activate ] && . .venv/bin/activate  # the README install
 group=cmu-locomotion-v1
-runs=runs/release-cmu-v1
-experts=$runs/experts
+experts=runs/release-cmu-v1/experts
+runs=${OUT:-runs/release-cmu-v1}
+pretrained=${PRETRAINED:-distill/experts/pretrained/$group}
+cards=${CARDS:-distill/experts/cards/$group}
+ROLLOUTS=${ROLLOUTS:---n-start 20 --n-rsi 80}
+EPISODES=${EPISODES:-50}
 STEPS=${STEPS:-7700}            # distillation steps: synthetic-v3's 2,258 for 7 snippets, scaled to 24
 TRANSFER_STEPS=${TRANSFER_STEPS:-300000}
 
@@ -29,33 +36,34 @@ fi
 for run in $experts/*/; do
     snippet=$(basename "$run")
     [ -f "$run/done.json" ] || continue
-    card=distill/experts/cards/$group/$snippet.card.json
+    card=$cards/$snippet.card.json
     [ -f "$card" ] || python tools/release/expert_card.py "$run" --group $group --clips $group --out "$card"
-    [ -d distill/experts/pretrained/$group/$snippet ] ||
-        mocap-hierarchy expert package "$run" distill/experts/pretrained/$group --card "$card" --clips $group
+    [ -d "$pretrained/$snippet" ] ||
+        mocap-hierarchy expert package "$run" "$pretrained" --card "$card" --clips $group
 done
 
 # 2. Their rollouts (the paper's A.2 layout), as for synthetic-v3: 20 episodes from the start, 80 from random frames.
-mocap-hierarchy rollout --experts $group --out $runs/dataset --n-start 20 --n-rsi 80 --workers 2
+# shellcheck disable=SC2086  # ROLLOUTS holds several flags
+mocap-hierarchy rollout --experts "$pretrained" --out $runs/dataset $ROLLOUTS --workers 2
 
 # 3. The multi-clip policy, online (the experts label the states it visits), with a learned prior.
-mocap-hierarchy distill train --data $runs/dataset --out $runs/distill --online --experts $group \
+mocap-hierarchy distill train --data $runs/dataset --out $runs/distill --online --experts "$pretrained" \
     --teacher-probability "linear:1@0,0@$((STEPS / 2))" --prior learned --steps "$STEPS" --batch-size 128 \
     --encoder-layers 512 512 --decoder-layers 512 512 512 --env-workers 2 --checkpoint-every 500
 
 # 4. How well it tracks: its own snippets (fraction of the experts; deterministic, then the paper's noisy protocol),
 #    then snippets of the library's trials none of whose snippets it was trained on.
-[ -f $runs/eval_seen.json ] || mocap-hierarchy distill eval $runs/distill --data $runs/dataset --episodes 50 \
+[ -f $runs/eval_seen.json ] || mocap-hierarchy distill eval $runs/distill --data $runs/dataset --episodes "$EPISODES" \
     --json $runs/eval_seen.json
 [ -f $runs/eval_seen_noisy.json ] || mocap-hierarchy distill eval $runs/distill --data $runs/dataset \
-    --episodes 50 --action-noise 0.1 --json $runs/eval_seen_noisy.json
+    --episodes "$EPISODES" --action-noise 0.1 --json $runs/eval_seen_noisy.json
 trained=$(ls $experts | sed 's/-[0-9]*-[0-9]*$//' | sort -u)
 unseen=$(mocap-hierarchy clips snippets --clips $group | grep -v -F -f <(printf '%s-\n' $trained))
 [ -f $runs/eval_unseen.json ] || mocap-hierarchy distill eval $runs/distill --clips $group --snippets $unseen \
-    --episodes 20 --json $runs/eval_unseen.json
+    --episodes "$EPISODES" --json $runs/eval_unseen.json
 
 # 5. Standing on its own: the decoder driven by samples of its learned prior on go-to-target (goal: 300 steps).
-[ -f $runs/prior_survival.json ] || python experiments/prior_survival.py $runs/distill --episodes 20 \
+[ -f $runs/prior_survival.json ] || python experiments/prior_survival.py $runs/distill --episodes "$EPISODES" \
     --json $runs/prior_survival.json
 
 # 6. Transfer at equal steps against synthetic-v3, three seeds, one decoder per core.
@@ -81,4 +89,10 @@ wait $v3
 wait $real
 python experiments/transfer_table.py $runs/transfer/velocity_control
 python experiments/transfer_table.py $runs/transfer/go_to_target
-echo "next: write hierarchy/pretrained/cards/cmu-v1.card.json from these figures, then decoder package"
+echo "next: from these figures write the cards hierarchy/pretrained/cards/cmu-v1.card.json (decoder, learned prior)" \
+    "and distill/npmp/cards/cmu-v1.card.json (the multi-clip policy), then: mocap-hierarchy decoder package" \
+    "$runs/distill/decoder.safetensors hierarchy/pretrained/cmu-v1.safetensors --card ... --scores" \
+    "$runs/eval_seen_noisy.json; mocap-hierarchy distill package $runs/distill distill/npmp/pretrained/cmu-v1.safetensors" \
+    "--card ... --scores $runs/eval_seen_noisy.json. The learned prior ($runs/distill/prior.safetensors) names" \
+    "its float32 decoder's behaviour hash, which float16 packaging changes: ship it bound to the packaged decoder" \
+    "(not yet a command: add one, or package the decoder with --float32)"
