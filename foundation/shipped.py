@@ -173,5 +173,9 @@ class Catalogue:
         return [kind for kind, shelf in self.shelves.items() if Path(name).as_posix() in shelf.names()]
 
     def hint(self, *kinds: str) -> str:
-        """The shipped names of ``kinds``, as messages list them (``shipped decoders: ...; shipped ...``)."""
-        return "; ".join(self.shelves[kind].hint() for kind in kinds)
+        """The shipped names of ``kinds``, as messages list them (``shipped decoders: ...; shipped ...``).
+
+        A kind with nothing shipped is left out, unless none of them has anything: then each says so.
+        """
+        listed = [self.shelves[kind].hint() for kind in kinds if self.shelves[kind].names()]
+        return "; ".join(listed or [self.shelves[kind].hint() for kind in kinds])

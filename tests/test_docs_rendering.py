@@ -98,7 +98,12 @@ def test_rewriting_the_figures_keeps_them_inside_their_lines(tmp_path, monkeypat
         assert checks.line_leading_figures(rewritten) == []
     monkeypatch.setattr(readme_numbers, "README", tmp_path / "README.md")
     (tmp_path / "README.md").write_text(README.read_text())
-    numbers = {"quickstart_minutes": 1234.5, "quickstart_rerun_seconds": 7.0, "tests_minutes": 0.1}
+    numbers = {
+        "quickstart_minutes": 1234.5,
+        "quickstart_rerun_seconds": 7.0,
+        "tests_minutes": 0.1,
+        "example_minutes": 9.9,
+    }
     assert readme_numbers.update_readme(numbers) >= 2
     assert checks.line_leading_figures((tmp_path / "README.md").read_text()) == []
 

@@ -121,7 +121,8 @@ def copy_quickstart_figures(out: Path, cli: list[str]) -> None:
     """The fresh quickstart's curves and its report into ``docs/figures/``, beside the summary they belong to."""
     for name in ("distill_loss", "velocity_control"):
         (FIGURES / f"quickstart_{name}.png").write_bytes((out / f"{name}.png").read_bytes())
-    timed_minutes([*cli, "report", str(out), "--out", str(FIGURES / "report_quickstart")], ROOT)
+    # run from the folder above, so the report names the run "quickstart", not the measuring machine's path
+    timed_minutes([*cli, "report", out.name, "--out", str(FIGURES / "report_quickstart")], out.parent)
 
 
 def run_readme_example(cwd: Path) -> tuple[float, str]:
