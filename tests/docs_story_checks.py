@@ -11,7 +11,7 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 
-from tests.docs_checks import FENCE, ROOT
+from tests.docs_checks import ROOT, command_lines
 
 BORROWED_MACHINE = re.compile(
     r"\blent\b|\blease\b|\$OUT\b|\btimeout_s\b|\bdevice time\b|\b64 MiB\b|\b15 minutes in all\b", re.I
@@ -43,22 +43,25 @@ def borrowed_machine_problems(files: Iterable[Path]) -> list[str]:
     return found
 
 
-def _commands_with_lines(text: str) -> list[tuple[int, str]]:
-    """Each shell command of the page's ``bash`` blocks (continuations joined) with the line it starts on."""
-    commands = []
-    for match in FENCE.finditer(text):
-        if match.group(2).strip() != "bash":
-            continue
-        first = text[: match.start(3)].count("\n") + 1
-        pending, start = "", 0
-        for offset, line in enumerate(match.group(3).splitlines()):
-            if not pending:
-                start = first + offset
-            pending += line.removesuffix("\\") + " "
-            if not line.rstrip().endswith("\\"):
-                commands.append((start, " ".join(pending.split("#", 1)[0].split())))
-                pending = ""
-    return commands
+def _training_commands(path: Path) -> list[tuple[int, list[str]]]:
+    """The page's training commands (:data:`BUDGETED_COMMANDS`, also under ``torchrun -m mocap_hierarchy``) as
+    words from the subcommand on, each with the line it starts on. Commands are read by
+    :func:`tests.docs_checks.command_lines` (continuations joined, comments dropped)."""
+    lines = path.read_text().splitlines()
+    found, cursor = [], 0
+    for program in ("mocap-hierarchy", "torchrun"):
+        for _, command in command_lines([path], program):
+            words = command.split()
+            if program == "torchrun":
+                words = words[words.index("mocap_hierarchy") :] if "mocap_hierarchy" in words else []
+            if " ".join(words[1:3]) not in BUDGETED_COMMANDS:
+                continue
+            start = f"{words[0] if program == 'torchrun' else program} {' '.join(words[1:3])}"
+            cursor = next((n for n in range(cursor, len(lines)) if start in lines[n]), 0)
+            found.append((cursor + 1, words[1:]))
+            cursor += 1
+        cursor = 0
+    return found
 
 
 def unbudgeted_command_problems(files: Iterable[Path], window: int = 12) -> list[str]:
@@ -69,22 +72,15 @@ def unbudgeted_command_problems(files: Iterable[Path], window: int = 12) -> list
     """
     found = []
     for path in files:
-        text = path.read_text()
-        lines = text.splitlines()
-        for number, command in _commands_with_lines(text):
-            words = command.split()
-            program = words.index("mocap_hierarchy") if "mocap_hierarchy" in words else None
-            if program is None and "mocap-hierarchy" in words:
-                program = words.index("mocap-hierarchy")
-            if program is None or " ".join(words[program + 1 : program + 3]) not in BUDGETED_COMMANDS:
-                continue
+        lines = path.read_text().splitlines()
+        for number, words in _training_commands(path):
             if any(flag in words for flag in BUDGET_FLAGS):
                 continue
             nearby = "\n".join(lines[max(0, number - 1 - window) : number + window])
             if not CLUSTER_WORDS.search(nearby):
                 found.append(
-                    f"{path.name}:{number}: `{command}` trains at the paper's cluster budgets: give it a budget "
-                    "(--steps, --profile) and its time on a small machine, or say it is cluster-scale"
+                    f"{path.name}:{number}: `{' '.join(words)}` trains at the paper's cluster budgets: give it a "
+                    "budget (--steps, --profile) and its time on a small machine, or say it is cluster-scale"
                 )
     return found
 
