@@ -58,7 +58,7 @@ class FakeStages:
         (shipped / "policies" / "synthetic-v3").mkdir(parents=True)
         (shipped / "policies" / "synthetic-v3" / "velocity_control.safetensors").write_text("a shipped policy")
         monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", shipped)
-        monkeypatch.setattr(pipeline, "ensure_synthetic_library", lambda progress: tmp_path / "clips.h5")
+        monkeypatch.setattr(pipeline, "resolve_clip_file", lambda clips, progress: tmp_path / "clips.h5")
         monkeypatch.setattr(pipeline, "list_clips", lambda library: {"SYN_stand": 181, "SYN_wave": 196})
         self.shipped_experts: list[str] = []  # none ship unless a test says so
         monkeypatch.setattr(pipeline, "shipped_expert_names", lambda group: list(self.shipped_experts))
@@ -109,7 +109,7 @@ class FakeStages:
         out.mkdir(parents=True, exist_ok=True)
         return {"folder": str(out), "files": 1, "episodes": 2, "steps": 100}
 
-    def _distill(self, data, out: Path, expert_rows, config):
+    def _distill(self, data, out: Path, expert_rows, library, config):
         self._call("distill")
         out.mkdir(parents=True, exist_ok=True)
         for name in ("decoder.safetensors", "policy.safetensors", "history.json"):
@@ -164,7 +164,7 @@ def fakes(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> FakeStages:
 
 
 def tiny(tmp_path: Path, **changes) -> QuickstartConfig:
-    return QuickstartConfig(out=str(tmp_path / "qs"), expert_snippets=("SYN_stand-0-181",), **changes)
+    return QuickstartConfig(out=str(tmp_path / "qs"), **{"expert_snippets": ("SYN_stand-0-181",), **changes})
 
 
 def test_rerun_of_a_finished_quickstart_runs_no_stage(fakes, tmp_path, capsys):
@@ -206,6 +206,20 @@ def test_changed_settings_rerun_only_the_stages_they_feed(fakes, tmp_path):
     summary = run_quickstart(tiny(tmp_path, transfer_steps=4096))
     assert summary["runs"][1]["stages_run"] == STAGES[5:]
     assert summary["seconds"] == summary["runs"][1]["seconds"]  # a new job: the first run had other settings
+
+
+def test_an_expert_snippet_outside_the_library_is_refused_before_any_stage(fakes, tmp_path):
+    with pytest.raises(ValueError, match=r"\['SYN_stand-0-99'\] are not snippets of the clip library 'synthetic'"):
+        run_quickstart(tiny(tmp_path, clips="synthetic", expert_snippets=("SYN_stand-0-99",)))
+    assert not fakes.calls  # nothing ran, nothing was written as done
+
+
+def test_another_clip_library_reruns_the_pipeline_but_not_the_shipped_skills(fakes, tmp_path, monkeypatch):
+    run_quickstart(tiny(tmp_path))
+    monkeypatch.setattr(pipeline, "resolve_clip_file", lambda clips, progress: tmp_path / f"{clips}.h5")
+    summary = run_quickstart(tiny(tmp_path, clips="synthetic"))
+    # the stages that read clips; not velocity control on the shipped decoder (its results are the same)
+    assert summary["runs"][1]["stages_run"] == ["playback", "experts", "dataset", "distill"]
 
 
 def test_velocity_control_runs_around_the_shipped_decoders_prior_and_the_summary_says_so(fakes, tmp_path, capsys):

@@ -1,4 +1,4 @@
-"""``mocap-hierarchy quickstart``: the main job on the built-in synthetic clips."""
+"""``mocap-hierarchy quickstart``: the main job on the built-in data (shipped skills, real CMU snippets)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,11 @@ from foundation.config_cli import LazySubParsers, add_dataclass_arguments, datac
 
 def add_commands(subparsers: LazySubParsers) -> None:
     """Registers ``quickstart`` (flags from :class:`mocap_hierarchy.quickstart.QuickstartConfig`, added when chosen)."""
-    subparsers.add_lazy_parser("quickstart", _build_quickstart, help="run the main job on the built-in synthetic clips")
+    subparsers.add_lazy_parser(
+        "quickstart",
+        _build_quickstart,
+        help="run the main job on the built-in data (shipped skills, real CMU snippets)",
+    )
 
 
 def _build_quickstart(parser: argparse.ArgumentParser) -> None:

@@ -9,10 +9,12 @@ First, the shipped skills (loaded by name, nothing trained or downloaded):
 Then the pipeline, each stage with a budget far below the shipped skills' (it shows that
 every stage runs and learns, not what full budgets reach):
 
-1. clips: generate (or reuse) the synthetic clip library and split it into snippets;
-2. playback: roll the fast tracking environment on every snippet with the
-   open-loop playback controller (a baseline, and the environment's speed);
-3. experts: train snippet experts for a few snippets (PPO, the paper's
+1. clips: the clip library (``clips``: by default ``cmu-locomotion-v1``, real CMU motion shipped with
+   the package; ``synthetic`` for the generated clips, or a clip file) and the expert snippets in it (by
+   default a real walk, a real 90-degree turn and a real forward jump);
+2. playback: roll the fast tracking environment on every expert snippet with the
+   open-loop playback controller (the experts' baseline, and the environment's speed);
+3. experts: train snippet experts for those snippets (PPO, the paper's
    settings with a small budget; residual actions by default, which start at
    the playback controller's level, see ``experiments/expert_learning.py``), as parallel jobs, and
    evaluate them like the playback rows;

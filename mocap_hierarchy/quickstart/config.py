@@ -40,8 +40,11 @@ class QuickstartConfig:
             them) against two baselines; skipped unless both ship.
         completion_contexts: Start frames per snippet of that comparison (times ``scale``).
         completion_snippet: The snippet whose completion by the GPT is recorded.
-        episodes_per_snippet: Playback episodes rolled per snippet.
-        expert_snippets: Snippets that get an expert.
+        clips: The clip library of the pipeline: a shipped library's name (``cmu-locomotion-v1``, real CMU
+            motion; ``synthetic``, the generated clips) or a clip file.
+        episodes_per_snippet: Playback episodes rolled per expert snippet (the experts' baseline).
+        expert_snippets: Snippets of ``clips`` that get an expert (by default a real walk, a real 90-degree
+            turn and a real forward jump).
         expert_steps: Environment steps per expert.
         residual_actions: Experts act as offsets from the reference pose.
         rollouts_per_snippet: Start-of-snippet and random-start episodes each, per expert.
@@ -73,8 +76,9 @@ class QuickstartConfig:
     shipped_gpt: str = "synthetic-v3"
     completion_contexts: int = 20
     completion_snippet: str = "SYN_walk_slow-0-182"
+    clips: str = "cmu-locomotion-v1"
     episodes_per_snippet: int = 3
-    expert_snippets: tuple[str, ...] = ("SYN_wave-0-196", "SYN_walk_slow-0-182", "SYN_squat-0-155")
+    expert_snippets: tuple[str, ...] = ("CMU_016_22-0-82", "CMU_016_27-0-64", "CMU_013_11-0-112")
     expert_steps: int = 16_384
     residual_actions: bool = True
     rollouts_per_snippet: int = 5

@@ -33,7 +33,7 @@ from mocap_hierarchy.quickstart.stages import (
 from mocap_hierarchy.quickstart.verdicts import summary_verdicts
 from tasks.clips.format import list_clips
 from tasks.clips.snippets import snippets_of_clip
-from tasks.clips.sources import ensure_synthetic_library
+from tasks.clips.sources import resolve_clip_file
 
 
 def run_quickstart(config: QuickstartConfig) -> dict:
@@ -63,10 +63,14 @@ def run_quickstart(config: QuickstartConfig) -> dict:
 
 def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dict:
     """Every stage, in order; returns the summary without verdicts and times."""
-    library = ensure_synthetic_library(progress=True)
+    library = resolve_clip_file(config.clips, progress=True)
     clips = list_clips(library)
-    snippets = [str(s) for clip_id, frames in clips.items() for s in snippets_of_clip(clip_id, frames)]
-    print(f"clip library: {library} ({len(clips)} clips, {sum(clips.values())} frames, {len(snippets)} snippets)")
+    snippets = _expert_snippets(
+        config, [str(s) for clip, frames in clips.items() for s in snippets_of_clip(clip, frames)]
+    )
+    print(
+        f"clip library: {config.clips} ({len(clips)} clips, {sum(clips.values())} frames; experts for {len(snippets)})"
+    )
     settings = asdict(config)
 
     def pick(*names: str) -> dict[str, Any]:
@@ -122,15 +126,18 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
     dataset = stages.run(
         "dataset",
         "rollout dataset",
-        {**pick("rollouts_per_snippet", "scale", "seed"), "experts": experts},
+        {**pick("rollouts_per_snippet", "scale", "seed"), "experts": experts, "library": str(library)},
         functools.partial(dataset_stage, out / "experts", out / "dataset", str(library), config),
         outputs=lambda result: [result["folder"]],
     )
     distilled = stages.run(
         "distill",
         "distillation",
-        {**pick("distill_steps", "distill_hidden", "scale", "seed"), "dataset": dataset, "experts": experts},
-        functools.partial(distill_stage, out / "dataset", out / "distill", experts, config),
+        {
+            **pick("distill_steps", "distill_hidden", "scale", "seed"),
+            **{"dataset": dataset, "experts": experts, "library": str(library)},
+        },
+        functools.partial(distill_stage, out / "dataset", out / "distill", experts, str(library), config),
         outputs=lambda result: [result["decoder"], result["policy"], result["history"]],
     )
     transfer_decoder = _transfer_decoder(config, distilled)
@@ -188,6 +195,21 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
         "recordings": recordings,
         "plots": plots,
     }
+
+
+def _expert_snippets(config: QuickstartConfig, snippets: list[str]) -> list[str]:
+    """The snippets that get an expert (and a playback baseline), checked against the library's snippets.
+
+    Raises:
+        ValueError: an expert snippet is not a snippet of the clip library; the message names some that are.
+    """
+    missing = [name for name in config.expert_snippets if name not in snippets]
+    if missing:
+        raise ValueError(
+            f"expert snippets {missing} are not snippets of the clip library {config.clips!r} (some that are: "
+            f"{', '.join(snippets[:4])}; `mocap-hierarchy clips snippets --clips {config.clips}` lists them all)"
+        )
+    return list(config.expert_snippets)
 
 
 def _experts_digest(names: list[str]) -> dict[str, str]:

@@ -93,7 +93,7 @@ def dataset_stage(experts: Path, out: Path, library: str, config: QuickstartConf
     return {"folder": str(out), "files": len(files), "episodes": len(dataset.episodes), "steps": steps}
 
 
-def distill_stage(data: Path, out: Path, expert_rows: list[dict], config: QuickstartConfig) -> dict:
+def distill_stage(data: Path, out: Path, expert_rows: list[dict], library: str, config: QuickstartConfig) -> dict:
     """Distils, then evaluates like the expert rows (deterministic, from the snippet start)."""
     from distill.npmp.evaluation import PolicyEvaluationConfig, evaluate_multi_clip, fraction_of_experts
     from distill.npmp.model import NpmpConfig, load_policy
@@ -116,7 +116,7 @@ def distill_stage(data: Path, out: Path, expert_rows: list[dict], config: Quicks
     experts = {row["snippet"]: row for row in expert_rows if "normalized_reward" in row}
     evaluation = PolicyEvaluationConfig(episodes=max(4, round(10 * config.scale)), init="start", seed=config.seed)
     policy = load_policy(result.policy)
-    rows = evaluate_multi_clip(policy, sorted(experts), evaluation, progress=True)
+    rows = evaluate_multi_clip(policy, sorted(experts), evaluation, clips=library, progress=True)
     actions = policy.spec.action_size
     return {
         "decoder": str(result.decoder),
