@@ -66,6 +66,12 @@ def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys)
     assert shipped["demo"]["planned_steps"] == 40 and 0 < shipped["demo"]["steps"] <= 40
     verify(Path(shipped["recording"]))
     assert summary["verdicts"]["shipped"]["velocity_control"]["verdict"]
+    # the shipped experts lead: two of them recorded tracking their snippet from its first frame to its end
+    recorded = summary["shipped"]["experts"]["recordings"]
+    assert list(recorded) == ["SYN_walk_slow-0-182", "SYN_turn_left-0-182"]
+    for path in recorded.values():
+        verify(Path(path))
+        assert max(frames(Path(path))[1]["/plots/action"]) > 150  # 182 frames: the expert keeps up to the end
     assert summary["config"]["clips"] == "cmu-locomotion-v1"  # the pipeline runs on real motion by default
     assert [row["snippet"] for row in summary["playback"]] == ["CMU_016_22-0-82"]  # the expert's baseline
     assert 0.0 < summary["playback"][0]["normalized_length"] <= 1.0

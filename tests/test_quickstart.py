@@ -61,7 +61,11 @@ class FakeStages:
         monkeypatch.setattr(pipeline, "resolve_clip_file", lambda clips, progress: tmp_path / "clips.h5")
         monkeypatch.setattr(pipeline, "list_clips", lambda library: {"SYN_stand": 181, "SYN_wave": 196})
         self.shipped_experts: list[str] = []  # none ship unless a test says so
-        monkeypatch.setattr(pipeline, "shipped_expert_names", lambda group: list(self.shipped_experts))
+        monkeypatch.setattr(
+            pipeline,
+            "shipped_expert_names",
+            lambda group: [n for n in self.shipped_experts if n.startswith(group + "/")],
+        )
         monkeypatch.setattr(pipeline, "_experts_digest", lambda names: dict.fromkeys(names, "digest"))
         self.shipped_gpt: Path | None = None  # no GPT ships unless a test says so
         monkeypatch.setattr(pipeline, "shipped_gpt_file", lambda name: self.shipped_gpt)
@@ -80,9 +84,13 @@ class FakeStages:
         recording.write_text("")
         return shipped_velocity_run(str(recording))
 
-    def _shipped_experts(self, config):
+    def _shipped_experts(self, out: Path, config):
         self._call("shipped_experts")
-        return shipped_experts_run(self.shipped_experts)
+        recordings = {snippet: str(out / f"shipped_expert_{snippet}.rrd") for snippet in config.expert_recordings}
+        for path in recordings.values():
+            Path(path).write_text("")
+        group = [name for name in self.shipped_experts if name.startswith(config.shipped_experts + "/")]
+        return shipped_experts_run(group, recordings=recordings)
 
     def _shipped_gpt(self, recording: Path, config):
         self._call("shipped_gpt")
@@ -164,7 +172,8 @@ def fakes(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> FakeStages:
 
 
 def tiny(tmp_path: Path, **changes) -> QuickstartConfig:
-    return QuickstartConfig(out=str(tmp_path / "qs"), **{"expert_snippets": ("SYN_stand-0-181",), **changes})
+    settings = {"expert_snippets": ("SYN_stand-0-181",), "expert_recordings": ("SYN_walk_slow-0-182",), **changes}
+    return QuickstartConfig(out=str(tmp_path / "qs"), **settings)
 
 
 def test_rerun_of_a_finished_quickstart_runs_no_stage(fakes, tmp_path, capsys):
@@ -302,7 +311,7 @@ def test_job_seconds_counts_the_runs_until_one_finished():
     assert job_seconds(runs, "b") == 7.0
 
 
-def shipped_experts_run(names: list[str], lengths: tuple[float, ...] = ()) -> dict:
+def shipped_experts_run(names: list[str], lengths: tuple[float, ...] = (), recordings: dict | None = None) -> dict:
     """The shipped experts' stage: each expert's rows (length 0.98 unless ``lengths`` says otherwise)."""
     lengths = lengths or (0.98,) * len(names)
     rows = [
@@ -317,7 +326,8 @@ def shipped_experts_run(names: list[str], lengths: tuple[float, ...] = ()) -> di
         }
         for name, length in zip(names, lengths, strict=True)
     ]
-    return {"group": "synthetic-v3", "episodes": 20, "action_noise": 0.1, "rows": rows}
+    group = names[0].split("/")[0] if names else "synthetic-v3"
+    return {"group": group, "episodes": 20, "action_noise": 0.1, "rows": rows, "recordings": recordings or {}}
 
 
 def shipped_velocity_run(recording: str = "s.rrd", slope: float = 0.8, mean_return: float = 520.0) -> dict:
@@ -569,7 +579,33 @@ def test_shipped_experts_are_shown_and_judged_only_when_they_ship(fakes, tmp_pat
     assert verdict["verdict"] == "track their snippets" and verdict["experts"] == 2
     out = capsys.readouterr().out
     assert "snippet experts (synthetic-v3): track their snippets (mean normalised length 0.980, each needs 0.9)" in out
+    # the shipped experts lead: their table and verdict come before the shipped velocity-control policy's
+    assert out.index("snippet experts, synthetic-v3") < out.index("velocity control, synthetic-v3/velocity_control")
+    assert out.index("snippet experts (synthetic-v3)") < out.index("velocity control (synthetic-v3/velocity_control)")
     assert out.index("SYN_walk_slow-0-182") < out.index("THE PIPELINE AT SMALL SCALE")
+    recording = summary["shipped"]["experts"]["recordings"]["SYN_walk_slow-0-182"]
+    assert recording.endswith("shipped_expert_SYN_walk_slow-0-182.rrd") and recording in out
+    Path(recording).unlink()
+    run_quickstart(tiny(tmp_path))  # a recording that is gone reruns its stage
+    assert fakes.calls["shipped_experts"] == 2
+
+
+def test_expert_recordings_outside_the_shipped_group_are_refused_before_any_stage(fakes, tmp_path):
+    fakes.shipped_experts = ["synthetic-v3/SYN_walk_slow-0-182"]
+    with pytest.raises(ValueError, match=r"\['SYN_jump-0-99'\] name no expert of the shipped group 'synthetic-v3'"):
+        run_quickstart(tiny(tmp_path, expert_recordings=("SYN_jump-0-99",)))
+    assert not fakes.calls
+
+
+def test_the_shipped_gpt_is_prompted_by_its_own_group_whichever_experts_lead(fakes, tmp_path):
+    fakes.shipped_experts = ["synthetic-v3/SYN_walk_slow-0-182", "real-v1/CMU_016_22-0-82"]
+    fakes.shipped_gpt = tmp_path / "gpt.safetensors"
+    fakes.shipped_gpt.write_text("a shipped GPT")
+    summary = run_quickstart(tiny(tmp_path, shipped_experts="real-v1", expert_recordings=("CMU_016_22-0-82",)))
+    assert summary["shipped"]["experts"]["group"] == "real-v1" and fakes.calls["shipped_gpt"] == 1
+    # no real group ships: the real experts' stage is skipped, the GPT still completes its own group's snippets
+    summary = run_quickstart(tiny(tmp_path / "none", shipped_experts="real-v2", expert_recordings=()))
+    assert "experts" not in summary["shipped"] and "gpt" in summary["shipped"]
 
 
 @pytest.mark.parametrize(

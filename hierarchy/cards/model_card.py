@@ -19,7 +19,8 @@ all optional:
 * ``commands``: the commands that rebuild it, in order;
 * ``notes``: limitations a user should know.
 
-:func:`package_decoder` attaches a card to a decoder (float16 weights by default),
+:func:`package_decoder` attaches a card to a decoder (float16 weights by default; its latent prior,
+given one, is written bound to the packaged weights),
 :func:`package_task_policy` to a task policy (weights unchanged).
 """
 
@@ -120,9 +121,20 @@ def card_of(decoder: LatentDecoder) -> dict[str, Any] | None:
 
 
 def package_decoder(
-    source: str | os.PathLike, out: str | os.PathLike, card: dict[str, Any], float16: bool = True
+    source: str | os.PathLike,
+    out: str | os.PathLike,
+    card: dict[str, Any],
+    float16: bool = True,
+    prior: str | os.PathLike | None = None,
+    prior_out: str | os.PathLike | None = None,
 ) -> tuple[Path, float]:
-    """Writes ``source``'s decoder with ``card`` attached (and float16 weights by default).
+    """Writes ``source``'s decoder with ``card`` attached (and float16 weights by default), and its prior.
+
+    A latent prior names the behaviour of the decoder it was fitted for
+    (:meth:`hierarchy.decoder.LatentDecoder.behaviour_sha256`), which float16 weights change. Given
+    ``prior`` (fitted for ``source``: checked before anything is written) and ``prior_out``, the prior
+    is written there bound to the packaged decoder, its weights unchanged; its provenance keeps the
+    source decoder's behaviour hash under ``packaged_from``.
 
     Returns:
         ``(path, largest absolute action difference)`` between the written and the
@@ -131,12 +143,31 @@ def package_decoder(
 
     Raises:
         ModelCardError: The card's fields are not of the expected types.
+        ValueError: Only one of ``prior`` and ``prior_out`` is given.
+        DecoderMismatchError: The prior was fitted for another decoder than ``source``.
     """
     card = check_card(card, f"the card for {out}")
+    if (prior is None) != (prior_out is None):
+        raise ValueError("a latent prior is packaged with its decoder given both: the prior (--prior) and its file (--prior-out)")
     decoder = load_decoder(source)
+    latent_prior = None
+    if prior is not None:
+        from hierarchy.latent_prior import load_latent_prior
+
+        latent_prior = load_latent_prior(prior)
+        latent_prior.check_fits(decoder)  # before anything is written
     decoder.spec = replace(decoder.spec, provenance={**decoder.spec.provenance, CARD_KEY: card})
     path = decoder.save(out, torch.float16 if float16 else torch.float32)
-    return path, action_difference(decoder, load_decoder(path))
+    packaged = load_decoder(path)
+    if latent_prior is not None and prior_out is not None:
+        spec = latent_prior.spec
+        latent_prior.spec = replace(
+            spec,
+            decoder_behaviour_sha256=packaged.behaviour_sha256(),
+            provenance={**spec.provenance, "packaged_from": spec.decoder_behaviour_sha256},
+        )
+        latent_prior.save(prior_out)
+    return path, action_difference(decoder, packaged)
 
 
 def package_task_policy(source: str | os.PathLike, out: str | os.PathLike, card: dict[str, Any]) -> Path:

@@ -34,6 +34,12 @@ def add_commands(subparsers: LazySubParsers) -> None:
     package.add_argument(
         "--scores", type=Path, default=None, help="`distill eval --json` file whose scores fill the card"
     )
+    package.add_argument(
+        "--prior", default=None, help="the latent prior fitted for FILE (a prior file, or a decoder's name)"
+    )
+    package.add_argument(
+        "--prior-out", type=Path, default=None, help="where to write that prior, bound to the packaged decoder"
+    )
     add_precision_arguments(package)
     package.set_defaults(handler=_package)
     card = decoder_commands.add_parser(
@@ -109,11 +115,15 @@ def _package(args: argparse.Namespace) -> None:
     card = read_json_file(args.card)
     if args.scores is not None:
         card = card_with_scores(card, read_json_file(args.scores, "scores file"))
-    path, difference = package_decoder(args.file, args.out, card, float16=not args.float32)
+    path, difference = package_decoder(
+        args.file, args.out, card, float16=not args.float32, prior=args.prior, prior_out=args.prior_out
+    )
     print(
         f"wrote {path} ({path.stat().st_size / 1e6:.2f} MB, {'float32' if args.float32 else 'float16'} weights); "
         f"largest action difference from the source decoder: {difference:.2e}"
     )
+    if args.prior_out is not None:
+        print(f"wrote {args.prior_out}: the latent prior {args.prior}, bound to {path.name}")
 
 
 def _card(args: argparse.Namespace) -> None:

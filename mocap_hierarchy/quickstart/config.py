@@ -34,10 +34,12 @@ class QuickstartConfig:
         demo_speeds: The speeds (m/s) its demonstration commands in order, one command period each.
         skill_episodes: Deterministic episodes of the shipped policy's evaluation (times ``scale``).
         skill_steps: Step limit of those episodes and of the demonstration (1000 steps = 30 s).
-        shipped_experts: The group of shipped snippet experts shown tracking their snippets (``skill_episodes``
-            episodes each, the paper's protocol); skipped when no such group ships.
-        shipped_gpt: The shipped motion GPT shown completing the snippets of ``shipped_experts`` (prompted by
-            them) against two baselines; skipped unless both ship.
+        shipped_experts: The group of shipped snippet experts shown first, tracking their snippets
+            (``skill_episodes`` episodes each, the paper's protocol); skipped when no such group ships.
+        expert_recordings: Snippets of ``shipped_experts`` whose experts are recorded tracking them, from the
+            first frame (``shipped_expert_SNIPPET.rrd``).
+        shipped_gpt: The shipped motion GPT shown completing the snippets of the experts shipped with it
+            (the group of the same name, prompted by them) against two baselines; skipped unless both ship.
         completion_contexts: Start frames per snippet of that comparison (times ``scale``).
         completion_snippet: The snippet whose completion by the GPT is recorded.
         clips: The clip library of the pipeline: a shipped library's name (``cmu-locomotion-v1``, real CMU
@@ -73,6 +75,7 @@ class QuickstartConfig:
     skill_episodes: int = 20
     skill_steps: int = 1000
     shipped_experts: str = "synthetic-v3"
+    expert_recordings: tuple[str, ...] = ("SYN_walk_slow-0-182", "SYN_turn_left-0-182")
     shipped_gpt: str = "synthetic-v3"
     completion_contexts: int = 20
     completion_snippet: str = "SYN_walk_slow-0-182"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
 from typing import Any
@@ -34,6 +35,9 @@ from mocap_hierarchy.quickstart.verdicts import summary_verdicts
 from tasks.clips.format import list_clips
 from tasks.clips.snippets import snippets_of_clip
 from tasks.clips.sources import resolve_clip_file
+
+Picker = Callable[..., dict[str, Any]]
+"""``pick(*names)``: the settings of those names, as a stage record keys them."""
 
 
 def run_quickstart(config: QuickstartConfig) -> dict:
@@ -73,42 +77,10 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
     )
     settings = asdict(config)
 
-    def pick(*names: str) -> dict[str, Any]:
+    def pick(*names: str) -> dict[str, Any]:  # settings by name, for the stage records
         return {name: settings[name] for name in names}
 
-    shipped_velocity = stages.run(
-        "shipped_velocity",
-        "shipped velocity-control policy",
-        {
-            **pick("shipped_velocity_policy", "demo_speeds", "skill_episodes", "skill_steps", "scale", "seed"),
-            "policy": _policy_digest(config),
-        },
-        functools.partial(shipped_velocity_stage, out / "shipped_velocity_control.rrd", config),
-        outputs=lambda result: [result["recording"]],
-    )
-    shipped = {"velocity_control": shipped_velocity}
-    experts_shipped = shipped_expert_names(config.shipped_experts)
-    if experts_shipped:
-        shipped["experts"] = stages.run(
-            "shipped_experts",
-            "shipped experts",
-            {**pick("shipped_experts", "skill_episodes", "scale", "seed"), "experts": _experts_digest(experts_shipped)},
-            functools.partial(shipped_experts_stage, config),
-        )
-        gpt_file = shipped_gpt_file(config.shipped_gpt)
-        if gpt_file is not None:
-            shipped["gpt"] = stages.run(
-                "shipped_gpt",
-                "shipped motion GPT",
-                {
-                    **pick("shipped_gpt", "shipped_experts", "completion_contexts", "completion_snippet", "scale"),
-                    "seed": config.seed,
-                    "gpt": file_sha256(gpt_file),
-                    "experts": _experts_digest(experts_shipped),
-                },
-                functools.partial(shipped_gpt_stage, out / "shipped_gpt_completion.rrd", config),
-                outputs=lambda result: [result["recording"]],
-            )
+    shipped = _shipped_stages(config, out, stages, pick)
     playback = stages.run(
         "playback",
         "playback",
@@ -195,6 +167,60 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
         "recordings": recordings,
         "plots": plots,
     }
+
+
+def _shipped_stages(config: QuickstartConfig, out: Path, stages: StageRunner, pick: Picker) -> dict[str, Any]:
+    """The shipped skills' stages: the shipped experts (when their group ships), velocity control, the GPT."""
+    shipped: dict[str, Any] = {}
+    experts_shipped = shipped_expert_names(config.shipped_experts)
+    if experts_shipped:
+        _check_recorded_snippets(config, experts_shipped)
+        shipped["experts"] = stages.run(
+            "shipped_experts",
+            "shipped experts",
+            {
+                **pick("shipped_experts", "expert_recordings", "skill_episodes", "scale", "seed"),
+                "experts": _experts_digest(experts_shipped),
+            },
+            functools.partial(shipped_experts_stage, out, config),
+            outputs=lambda result: list(result["recordings"].values()),
+        )
+    shipped["velocity_control"] = stages.run(
+        "shipped_velocity",
+        "shipped velocity-control policy",
+        {
+            **pick("shipped_velocity_policy", "demo_speeds", "skill_episodes", "skill_steps", "scale", "seed"),
+            "policy": _policy_digest(config),
+        },
+        functools.partial(shipped_velocity_stage, out / "shipped_velocity_control.rrd", config),
+        outputs=lambda result: [result["recording"]],
+    )
+    gpt_file = shipped_gpt_file(config.shipped_gpt)
+    prompting = shipped_expert_names(config.shipped_gpt)  # the experts shipped with the GPT prompt it
+    if gpt_file is not None and prompting:
+        shipped["gpt"] = stages.run(
+            "shipped_gpt",
+            "shipped motion GPT",
+            {
+                **pick("shipped_gpt", "completion_contexts", "completion_snippet", "scale", "seed"),
+                "gpt": file_sha256(gpt_file),
+                "experts": _experts_digest(prompting),
+            },
+            functools.partial(shipped_gpt_stage, out / "shipped_gpt_completion.rrd", config),
+            outputs=lambda result: [result["recording"]],
+        )
+    return shipped
+
+
+def _check_recorded_snippets(config: QuickstartConfig, names: list[str]) -> None:
+    """Refuses ``expert_recordings`` that name no expert of the shipped group, before any stage runs."""
+    snippets = [name.split("/", 1)[1] for name in names]
+    missing = [snippet for snippet in config.expert_recordings if snippet not in snippets]
+    if missing:
+        raise ValueError(
+            f"expert recordings {missing} name no expert of the shipped group {config.shipped_experts!r} (its "
+            f"snippets: {', '.join(snippets)})"
+        )
 
 
 def _expert_snippets(config: QuickstartConfig, snippets: list[str]) -> list[str]:

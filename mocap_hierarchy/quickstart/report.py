@@ -16,9 +16,9 @@ def print_summary(summary: dict) -> None:
     shipped = summary.get("shipped", {})
     if shipped:
         print("\nSHIPPED SKILLS (trained far longer than this run; loaded by name, nothing downloaded)")
-        _print_shipped_velocity(shipped["velocity_control"])
         if "experts" in shipped:
             _print_shipped_experts(shipped["experts"])
+        _print_shipped_velocity(shipped["velocity_control"])
         if "gpt" in shipped:
             _print_shipped_gpt(shipped["gpt"])
         print("\nTHE PIPELINE AT SMALL SCALE (every stage runs and learns; budgets far below the shipped skills')")
@@ -86,19 +86,19 @@ def print_summary(summary: dict) -> None:
         around = f", acting around the latent prior {prior['name']} ({prior['path']})" if prior else ""
         print(f"velocity control ran on the decoder {used['name']} ({used['path']}){around}")
     if "shipped" in verdicts:
-        velocity = verdicts["shipped"]["velocity_control"]
         print("\nverdicts, shipped skills:")
-        print(
-            f"  velocity control ({velocity['policy']}): {velocity['verdict']} (speed slope "
-            f"{velocity['speed_slope']:.2f}, needs {velocity['follows_from_slope']:g}; reward per step "
-            f"{velocity['reward_per_step']:.3f}, standing still {velocity['still_reward_per_step']:.3f})"
-        )
         experts = verdicts["shipped"].get("experts")
         if experts:
             print(
                 f"  snippet experts ({experts['group']}): {experts['verdict']} (mean normalised length "
                 f"{experts['mean_length']:.3f}, each needs {experts['tracks_from_length']:g})"
             )
+        velocity = verdicts["shipped"]["velocity_control"]
+        print(
+            f"  velocity control ({velocity['policy']}): {velocity['verdict']} (speed slope "
+            f"{velocity['speed_slope']:.2f}, needs {velocity['follows_from_slope']:g}; reward per step "
+            f"{velocity['reward_per_step']:.3f}, standing still {velocity['still_reward_per_step']:.3f})"
+        )
         gpt = verdicts["shipped"].get("gpt")
         if gpt:
             moving = gpt["moving_seconds"]
@@ -137,7 +137,8 @@ def print_summary(summary: dict) -> None:
     if "learning" in velocity:
         line += f"; {velocity['learning']}"
     print(line)
-    shipped_recordings = [shipped[name]["recording"] for name in ("velocity_control", "gpt") if name in shipped]
+    shipped_recordings = [*shipped.get("experts", {}).get("recordings", {}).values()]
+    shipped_recordings += [shipped[name]["recording"] for name in ("velocity_control", "gpt") if name in shipped]
     recordings = [*shipped_recordings, *summary["recordings"].values()]
     print(f"\nrecordings: {', '.join(recordings)} (mocap-hierarchy view FILE)")
     print(f"plots: {', '.join(summary['plots'])}")

@@ -67,12 +67,14 @@ def shipped_expert_names(group: str) -> list[str]:
     return [name for name in shipped_experts() if name.split("/", 1)[0] == group]
 
 
-def shipped_experts_stage(config: QuickstartConfig) -> dict[str, Any]:
-    """The shipped snippet experts of ``config.shipped_experts`` tracking their snippets.
+def shipped_experts_stage(out: Path, config: QuickstartConfig) -> dict[str, Any]:
+    """The shipped snippet experts of ``config.shipped_experts`` tracking their snippets, and recordings of some.
 
     The paper's protocol at a smaller size: ``config.skill_episodes`` episodes per expert (times ``scale``)
     from random frames, with the experts' action noise of 0.1; each expert's card holds the same figures
     over 1000 episodes (``card_reward``, ``card_length``). The experts track the clip library they record.
+    The experts of ``config.expert_recordings`` are then recorded tracking their snippet from its first
+    frame to its end (deterministic), each to ``out/shipped_expert_SNIPPET.rrd``.
     """
     from distill.experts.clip_library import experts_clips
     from distill.experts.config import EvaluationConfig
@@ -101,8 +103,21 @@ def shipped_experts_stage(config: QuickstartConfig) -> dict[str, Any]:
                 "card_length": scores.get("normalized_length"),
             }
         )
+    from mocap_hierarchy.record import record
+
+    recordings = {}
+    for snippet in config.expert_recordings:
+        recordings[snippet] = str(out / f"shipped_expert_{snippet}.rrd")
+        print(f"recording the shipped expert tracking {snippet} from its first frame")
+        record("tracking", f"{config.shipped_experts}/{snippet}", recordings[snippet], overrides={"init": "start"})
     noise = evaluation.action_noise
-    return {"group": config.shipped_experts, "episodes": episodes, "action_noise": noise, "rows": rows}
+    return {
+        "group": config.shipped_experts,
+        "episodes": episodes,
+        "action_noise": noise,
+        "rows": rows,
+        "recordings": recordings,
+    }
 
 
 COMPLETION_BASELINES = {"prior": "the decoder driven by its latent prior", "hold": "holding the last pose"}
@@ -117,9 +132,9 @@ def shipped_gpt_file(name: str) -> Path | None:
 
 
 def shipped_gpt_stage(recording: Path, config: QuickstartConfig) -> dict[str, Any]:
-    """The shipped motion GPT completing the snippets of the shipped experts, against the two baselines.
+    """The shipped motion GPT completing the snippets of the experts shipped with it, against the two baselines.
 
-    Every shipped expert of ``config.shipped_experts`` prompts its snippet for 32 steps from
+    Every shipped expert of the group named like the GPT (``config.shipped_gpt``) prompts its snippet for 32 steps from
     ``config.completion_contexts`` start frames (times ``scale``) spread over the snippet; then the GPT
     ``config.shipped_gpt``, the decoder driven by its latent prior and the held last pose each act alone from
     the same states (deterministic). One completion of ``config.completion_snippet`` is recorded to
@@ -133,7 +148,7 @@ def shipped_gpt_stage(recording: Path, config: QuickstartConfig) -> dict[str, An
     from distill.gpt.shipped import resolve_gpt
     from mocap_hierarchy.record import record
 
-    names = shipped_expert_names(config.shipped_experts)
+    names = shipped_expert_names(config.shipped_gpt)
     contexts = max(2, round(config.completion_contexts * config.scale))
     completion = CompletionConfig(
         episodes=contexts, completers=("gpt", *COMPLETION_BASELINES), variants=("deterministic",), seed=config.seed
@@ -147,14 +162,14 @@ def shipped_gpt_stage(recording: Path, config: QuickstartConfig) -> dict[str, An
     gpt_file = resolve_gpt(config.shipped_gpt)  # a path: the GPT shares its name with the decoder it came with
     clips = experts_clips(names)  # the library the experts were trained on (None: their snippets' default)
     results = complete_motions(load_gpt(gpt_file), prompts, completion, clips=clips, progress=True)
-    demo = f"{config.shipped_experts}/{config.completion_snippet}"
+    demo = f"{config.shipped_gpt}/{config.completion_snippet}"
     if demo not in names:
         demo = names[0]
     print(f"recording the GPT completing {demo.split('/', 1)[1]}")
     record("motion_completion", str(gpt_file), recording, seed=0, prompt=demo)
     return {
         "gpt": config.shipped_gpt,
-        "experts": config.shipped_experts,
+        "experts": config.shipped_gpt,
         "contexts": contexts,
         "prompt_steps": completion.prompt_steps,
         "max_steps": completion.max_steps,

@@ -51,10 +51,11 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
     """
     verdicts: dict[str, Any] = {}
     shipped = summary.get("shipped", {})
-    if "velocity_control" in shipped:  # the shipped skills' verdicts lead
-        verdicts["shipped"] = {"velocity_control": _shipped_velocity_verdict(shipped["velocity_control"])}
+    if "velocity_control" in shipped:  # the shipped skills' verdicts lead, the shipped experts' first
+        verdicts["shipped"] = {}
         if "experts" in shipped:
             verdicts["shipped"]["experts"] = _shipped_experts_verdict(shipped["experts"])
+        verdicts["shipped"]["velocity_control"] = _shipped_velocity_verdict(shipped["velocity_control"])
         if "gpt" in shipped:
             verdicts["shipped"]["gpt"] = _shipped_gpt_verdict(shipped["gpt"])
     verdicts["experts"] = _expert_verdicts(summary["playback"], summary["experts"])

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from foundation.fingerprints import file_sha256
 from foundation.shell_lines import split_comment
@@ -18,7 +19,8 @@ from hierarchy.cards.decoder import scores_markdown
 from hierarchy.cards.markdown import CARD_FILE, SECTIONS, TESTED_WITH, DocLinks
 from hierarchy.cards.model_card import ModelCardError, card_of, check_card, package_decoder
 from hierarchy.cards.page import TASK_POLICY_FORMAT, card_page, model_card
-from hierarchy.latent_prior import shipped_priors
+from hierarchy.decoder import DecoderMismatchError
+from hierarchy.latent_prior import LatentPrior, shipped_priors
 from hierarchy.pretrained import pretrained_decoders
 from mocap_hierarchy.cli import main
 
@@ -187,3 +189,31 @@ def test_scores_show_the_multi_clip_policys_tracking_metrics_where_its_evaluatio
     assert "| SYN_a-0-10 | 0.250 | 41.2 | - | - | - |" in lines  # errors it lacks print as -
     before = {**card, "multi_clip": {"snippets": {"SYN_a-0-10": {"normalized_reward": 0.4, "normalized_length": 0.8}}}}
     assert not any("G-MPJPE" in line for line in scores_markdown(before))  # evaluations from before the metrics
+
+
+def test_a_prior_packaged_with_its_float16_decoder_fits_it_and_keeps_its_weights(tmp_path, capsys):
+    source = small_decoder().save(tmp_path / "source.safetensors")
+    prior = LatentPrior.for_decoder(load_decoder(source), hidden_layers=(16,), stochastic=True)
+    prior_file = prior.save(tmp_path / "prior.safetensors")
+    card_json = tmp_path / "card.json"
+    card_json.write_text(json.dumps({"summary": "a small decoder"}))
+    out, prior_out = tmp_path / "packaged.safetensors", tmp_path / "packaged_prior.safetensors"
+    args = ["decoder", "package", str(source), str(out), "--card", str(card_json)]
+    assert main([*args, "--prior", str(prior_file), "--prior-out", str(prior_out)]) == 0
+    assert f"bound to {out.name}" in capsys.readouterr().out
+    packaged = load_decoder(out)
+    with pytest.raises(DecoderMismatchError, match="fitted for another decoder"):
+        prior.check_fits(packaged)  # float16 weights: the source's prior no longer names this decoder
+    bound = load_latent_prior(prior_out)
+    bound.check_fits(packaged)
+    assert bound.spec.provenance["packaged_from"] == load_decoder(source).behaviour_sha256()
+    for name, tensor in prior.state_dict().items():
+        assert torch.equal(bound.state_dict()[name], tensor), name
+    # A prior fitted for another decoder is refused before anything is written; one flag alone is refused.
+    other = LatentPrior.for_decoder(small_decoder(seed=1), hidden_layers=(16,)).save(tmp_path / "other.safetensors")
+    never = ["decoder", "package", str(source), str(tmp_path / "never.safetensors"), "--card", str(card_json)]
+    assert main([*never, "--prior", str(other), "--prior-out", str(tmp_path / "never_prior.safetensors")]) == 2
+    assert "fitted for another decoder" in capsys.readouterr().err
+    assert main([*never, "--prior", str(prior_file)]) == 2
+    assert "--prior-out" in capsys.readouterr().err
+    assert not list(tmp_path.glob("never*"))

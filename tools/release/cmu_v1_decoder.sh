@@ -51,6 +51,17 @@ mocap-hierarchy distill train --data $runs/dataset --out $runs/distill --online 
     --teacher-probability "linear:1@0,0@$((STEPS / 2))" --prior learned --steps "$STEPS" --batch-size 128 \
     --encoder-layers 512 512 --decoder-layers 512 512 512 --env-workers 2 --checkpoint-every 500
 
+# 3b. The decoder as it ships (float16) with its learned prior bound to it: transfer trains on these, so the task
+#     policies fit the shipped pair. The final card re-packages the same weights (same behaviour hash).
+if [ ! -f $runs/packaged/prior.safetensors ]; then
+    mkdir -p $runs/packaged
+    echo '{"name": "cmu-v1", "summary": "draft: the card with its scores comes with the release"}' \
+        > $runs/packaged/draft.card.json
+    mocap-hierarchy decoder package $runs/distill/decoder.safetensors $runs/packaged/decoder.safetensors \
+        --card $runs/packaged/draft.card.json --prior $runs/distill/prior.safetensors \
+        --prior-out $runs/packaged/prior.safetensors
+fi
+
 # 4. How well it tracks: its own snippets (fraction of the experts; deterministic, then the paper's noisy protocol),
 #    then snippets of the library's trials none of whose snippets it was trained on.
 [ -f $runs/eval_seen.json ] || mocap-hierarchy distill eval $runs/distill --data $runs/dataset --episodes "$EPISODES" \
@@ -83,7 +94,7 @@ lane() {  # label decoder prior
 }
 lane synthetic-v3 synthetic-v3 synthetic-v3 &
 v3=$!
-lane cmu-v1 $runs/distill/decoder.safetensors $runs/distill/prior.safetensors &
+lane cmu-v1 $runs/packaged/decoder.safetensors $runs/packaged/prior.safetensors &
 real=$!
 wait $v3
 wait $real
@@ -92,7 +103,6 @@ python experiments/transfer_table.py $runs/transfer/go_to_target
 echo "next: from these figures write the cards hierarchy/pretrained/cards/cmu-v1.card.json (decoder, learned prior)" \
     "and distill/npmp/cards/cmu-v1.card.json (the multi-clip policy), then: mocap-hierarchy decoder package" \
     "$runs/distill/decoder.safetensors hierarchy/pretrained/cmu-v1.safetensors --card ... --scores" \
-    "$runs/eval_seen_noisy.json; mocap-hierarchy distill package $runs/distill distill/npmp/pretrained/cmu-v1.safetensors" \
-    "--card ... --scores $runs/eval_seen_noisy.json. The learned prior ($runs/distill/prior.safetensors) names" \
-    "its float32 decoder's behaviour hash, which float16 packaging changes: ship it bound to the packaged decoder" \
-    "(not yet a command: add one, or package the decoder with --float32)"
+    "$runs/eval_seen_noisy.json --prior $runs/distill/prior.safetensors --prior-out" \
+    "hierarchy/pretrained/priors/cmu-v1.safetensors; mocap-hierarchy distill package $runs/distill" \
+    "distill/npmp/pretrained/cmu-v1.safetensors --card ... --scores $runs/eval_seen_noisy.json"
