@@ -21,7 +21,8 @@ all optional:
 
 :func:`package_decoder` attaches a card to a decoder (float16 weights by default; its latent prior,
 given one, is written bound to the packaged weights),
-:func:`package_task_policy` to a task policy (weights unchanged).
+:func:`package_task_policy` to a task policy (weights unchanged; the decoder and prior it recorded by path
+alone are named after the shipped ones they are, :func:`named_as_shipped`).
 """
 
 from __future__ import annotations
@@ -148,7 +149,9 @@ def package_decoder(
     """
     card = check_card(card, f"the card for {out}")
     if (prior is None) != (prior_out is None):
-        raise ValueError("a latent prior is packaged with its decoder given both: the prior (--prior) and its file (--prior-out)")
+        raise ValueError(
+            "a latent prior is packaged with its decoder given both: the prior (--prior) and its file (--prior-out)"
+        )
     decoder = load_decoder(source)
     latent_prior = None
     if prior is not None:
@@ -188,8 +191,41 @@ def package_task_policy(source: str | os.PathLike, out: str | os.PathLike, card:
 
     card = check_card(card, f"the card for {out}")
     policy = load_task_policy(source)
-    policy.spec = replace(policy.spec, provenance={**policy.spec.provenance, CARD_KEY: card})
+    provenance = {**policy.spec.provenance, CARD_KEY: card}
+    policy.spec = replace(policy.spec, decoder=named_as_shipped(policy.spec.decoder), provenance=provenance)
     return policy.save(out)
+
+
+def named_as_shipped(facts: dict[str, Any] | None) -> dict[str, Any] | None:
+    """A task policy's decoder facts, with the shipped names of a decoder and prior it recorded only by path.
+
+    A policy trained before its decoder shipped (a release trains its task policies on the packaged decoder,
+    then ships the three together) records their paths on the machine it trained on. Once the decoder ships,
+    its name is the shipped decoder of the same behaviour (:meth:`LatentDecoder.behaviour_sha256`: the same
+    weights under any card) or of the same file; the prior's, the shipped prior of the same file. A name
+    already recorded is kept; nothing matches, nothing changes.
+    """
+    from foundation.fingerprints import file_sha256
+    from hierarchy.latent_prior import shipped_priors
+    from hierarchy.pretrained import pretrained_decoders
+
+    if facts is None:
+        return None
+    named = dict(facts)
+    if not named.get("name"):
+        for name, path in pretrained_decoders().items():
+            behaviour = named.get("behaviour_sha256")
+            if file_sha256(path) == named["sha256"] or (
+                behaviour and load_decoder(path).behaviour_sha256() == behaviour
+            ):
+                named["name"] = name
+                break
+    prior = named.get("latent_prior")
+    if prior and not prior.get("name"):
+        shipped = [name for name, path in shipped_priors().items() if file_sha256(path) == prior["sha256"]]
+        if shipped:
+            named["latent_prior"] = {**prior, "name": shipped[0]}
+    return named
 
 
 def card_with_scores(card: dict[str, Any], evaluation: dict[str, Any]) -> dict[str, Any]:

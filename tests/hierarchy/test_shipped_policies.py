@@ -123,6 +123,47 @@ def test_transfer_package_takes_a_run_folder_and_says_how_the_decoder_is_found(i
     assert "`scores.return` must be a number or a string, not a list" in capsys.readouterr().err
 
 
+def test_a_policy_trained_before_its_decoder_shipped_finds_it_by_name_once_packaged(tmp_path, monkeypatch, capsys):
+    # A release trains on its packaged decoder and prior (a draft card), then ships them under another card.
+    draft, built, run = tmp_path / "draft", tmp_path / "built", tmp_path / "run"
+    draft.mkdir()
+    decoder = small_decoder()
+    decoder.spec = dataclasses.replace(decoder.spec, provenance={CARD_KEY: {"summary": "draft"}})
+    decoder_file = decoder.save(draft / "real-v1.safetensors")
+    prior_file = small_prior().save(draft / "real-v1-prior.safetensors")
+    monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", built)  # nothing ships yet
+    train_transfer(
+        "velocity_control", run, decoder_file, TINY, {"max_steps": 20}, progress=False, latent_prior=prior_file
+    )
+    facts = load_task_policy(run / POLICY_FILE).spec.decoder
+    assert facts is not None and facts["name"] is None and facts["latent_prior"]["name"] is None
+    (built / "priors").mkdir(parents=True)
+    decoder.spec = dataclasses.replace(decoder.spec, provenance={CARD_KEY: {"summary": "the final card"}})
+    decoder.save(built / "real-v1.safetensors")  # another file: the same weights under the final card
+    shutil.copy(prior_file, built / "priors" / "real-v1.safetensors")
+    out = built / "policies" / "real-v1" / "velocity_control.safetensors"
+    assert main(["transfer", "package", str(run), str(out), "--card", str(write_card(tmp_path))]) == 0
+    printed = capsys.readouterr().out
+    assert "decoder: the shipped real-v1, found by name" in printed
+    assert "latent prior: the shipped real-v1, found by name" in printed
+    shutil.rmtree(draft)  # the paths it trained on are gone, as on a user's machine
+    policy, found = load_policy_and_decoder("real-v1/velocity_control")
+    assert found is not None and load_policy_prior(policy, found) is not None
+    # A policy whose decoder never shipped keeps its path and says what users need.
+    monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", tmp_path / "empty")
+    assert (
+        main(["transfer", "package", str(run), str(tmp_path / "x.safetensors"), "--card", str(write_card(tmp_path))])
+        == 0
+    )
+    assert "not a shipped one: users need that file" in capsys.readouterr().out
+
+
+def write_card(folder: Path) -> Path:
+    card_file = folder / "card.json"
+    card_file.write_text(json.dumps(CARD))
+    return card_file
+
+
 # ------------------------------------------------------------------------------------------------ by name
 
 

@@ -5,12 +5,13 @@
 # prior's samples on synthetic data: docs/experiments/2026-11-27-online-distillation.md), evaluates it on its own
 # snippets (deterministic and the paper's noisy protocol) and on real snippets of trials it never saw, measures how
 # long its prior's samples keep the humanoid up, and compares transfer on it against synthetic-v3 at equal steps
-# (velocity control in any direction and go-to-target, three seeds each, one decoder per core).
+# (velocity control in any direction and go-to-target, three seeds each, one decoder per core), then trains the task
+# policies that ship on it (1M steps each).
 # Resumable: rerun it after a kill; every finished step is skipped (each command resumes or its output exists).
 # Where it stands: the files under runs/release-cmu-v1/ (dataset/, distill/, eval_*.json, transfer/).
 # A rehearsal at tiny budgets, writing nothing into the package (about 10 minutes on 2 cores):
 #   PARTIAL=1 OUT=/tmp/rehearsal PRETRAINED=/tmp/rehearsal/experts CARDS=/tmp/rehearsal/cards STEPS=20 \
-#   TRANSFER_STEPS=4096 ROLLOUTS="--n-start 1 --n-rsi 1" EPISODES=2 tools/release/cmu_v1_decoder.sh
+#   TRANSFER_STEPS=4096 SHIP_STEPS=4096 ROLLOUTS="--n-start 1 --n-rsi 1" EPISODES=2 tools/release/cmu_v1_decoder.sh
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 export OMP_NUM_THREADS=1
@@ -23,7 +24,8 @@ cards=${CARDS:-distill/experts/cards/$group}
 ROLLOUTS=${ROLLOUTS:---n-start 20 --n-rsi 80}
 EPISODES=${EPISODES:-50}
 STEPS=${STEPS:-7700}            # distillation steps: synthetic-v3's 2,258 for 7 snippets, scaled to 24
-TRANSFER_STEPS=${TRANSFER_STEPS:-300000}
+TRANSFER_STEPS=${TRANSFER_STEPS:-300000}  # each run of the comparison against synthetic-v3
+SHIP_STEPS=${SHIP_STEPS:-1000000}          # each task policy that ships
 
 finished=$(ls $experts/*/done.json 2>/dev/null | wc -l)
 if [ "$finished" -lt 24 ] && [ -z "${PARTIAL:-}" ]; then
@@ -53,13 +55,13 @@ mocap-hierarchy distill train --data $runs/dataset --out $runs/distill --online 
 
 # 3b. The decoder as it ships (float16) with its learned prior bound to it: transfer trains on these, so the task
 #     policies fit the shipped pair. The final card re-packages the same weights (same behaviour hash).
-if [ ! -f $runs/packaged/prior.safetensors ]; then
+if [ ! -f $runs/packaged/cmu-v1-prior.safetensors ]; then
     mkdir -p $runs/packaged
     echo '{"name": "cmu-v1", "summary": "draft: the card with its scores comes with the release"}' \
         > $runs/packaged/draft.card.json
-    mocap-hierarchy decoder package $runs/distill/decoder.safetensors $runs/packaged/decoder.safetensors \
+    mocap-hierarchy decoder package $runs/distill/decoder.safetensors $runs/packaged/cmu-v1.safetensors \
         --card $runs/packaged/draft.card.json --prior $runs/distill/prior.safetensors \
-        --prior-out $runs/packaged/prior.safetensors
+        --prior-out $runs/packaged/cmu-v1-prior.safetensors
 fi
 
 # 4. How well it tracks: its own snippets (fraction of the experts; deterministic, then the paper's noisy protocol),
@@ -82,7 +84,7 @@ transfer() {  # task label decoder prior seed [settings...]
     local task=$1 label=$2 decoder=$3 prior=$4 seed=$5
     shift 5
     mocap-hierarchy transfer train --task "$task" --decoder "$decoder" --latent-prior "$prior" \
-        --out "$runs/transfer/$task/$label/seed$seed" --seed "$seed" --initial-std 1.0 "$@" \
+        --out "${TRANSFER_ROOT:-$runs/transfer}/$task/$label/seed$seed" --seed "$seed" --initial-std 1.0 "$@" \
         --steps "$TRANSFER_STEPS" --n-envs 8 --steps-per-update 4096 --minibatch-size 512 \
         --hidden-layers 256 256 --learning-rate 3e-4 --no-subprocess-envs --checkpoint-every 100000
 }
@@ -94,15 +96,40 @@ lane() {  # label decoder prior
 }
 lane synthetic-v3 synthetic-v3 synthetic-v3 &
 v3=$!
-lane cmu-v1 $runs/packaged/decoder.safetensors $runs/packaged/prior.safetensors &
+lane cmu-v1 $runs/packaged/cmu-v1.safetensors $runs/packaged/cmu-v1-prior.safetensors &
 real=$!
 wait $v3
 wait $real
 python experiments/transfer_table.py $runs/transfer/velocity_control
 python experiments/transfer_table.py $runs/transfer/go_to_target
-echo "next: from these figures write the cards hierarchy/pretrained/cards/cmu-v1.card.json (decoder, learned prior)" \
-    "and distill/npmp/cards/cmu-v1.card.json (the multi-clip policy), then: mocap-hierarchy decoder package" \
-    "$runs/distill/decoder.safetensors hierarchy/pretrained/cmu-v1.safetensors --card ... --scores" \
-    "$runs/eval_seen_noisy.json --prior $runs/distill/prior.safetensors --prior-out" \
-    "hierarchy/pretrained/priors/cmu-v1.safetensors; mocap-hierarchy distill package $runs/distill" \
-    "distill/npmp/pretrained/cmu-v1.safetensors --card ... --scores $runs/eval_seen_noisy.json"
+# Each run's deterministic evaluation: speed tracking (slope, heading cosine, standing still) and target reaching.
+velocity_runs=$(ls -d $runs/transfer/velocity_control/*/seed*)
+[ -f $runs/velocity_control_300k.json ] || python experiments/speed_tracking.py $velocity_runs --episodes 30 \
+    --steps 1000 --out $runs/velocity_control_300k.png --json $runs/velocity_control_300k.json
+[ -f $runs/go_to_target_300k.json ] || python experiments/target_reaching.py \
+    $(ls -d $runs/transfer/go_to_target/*/seed*) --episodes 50 --json $runs/go_to_target_300k.json
+
+# 7. The task policies that ship on cmu-v1: seed 0 of each task (chosen before any result), 1M steps, as
+#    synthetic-v3's were trained; then the same evaluations as their cards quote.
+packaged="$runs/packaged/cmu-v1.safetensors $runs/packaged/cmu-v1-prior.safetensors"
+# shellcheck disable=SC2086  # packaged holds the decoder and its prior
+TRANSFER_ROOT=$runs/ship TRANSFER_STEPS=$SHIP_STEPS transfer velocity_control cmu-v1 $packaged 0 --set max_speed=1.5 &
+ship_velocity=$!
+# shellcheck disable=SC2086
+TRANSFER_ROOT=$runs/ship TRANSFER_STEPS=$SHIP_STEPS transfer go_to_target cmu-v1 $packaged 0 --set approach_reward=10 &
+ship_target=$!
+wait $ship_velocity
+wait $ship_target
+[ -f $runs/ship_velocity_control.json ] || python experiments/speed_tracking.py \
+    $runs/ship/velocity_control/cmu-v1/seed0 --labels shipped --episodes 30 --steps 1000 \
+    --out $runs/ship_velocity_control.png --json $runs/ship_velocity_control.json
+[ -f $runs/ship_go_to_target.json ] || python experiments/target_reaching.py $runs/ship/go_to_target/cmu-v1/seed0 \
+    --labels shipped --episodes 50 --json $runs/ship_go_to_target.json
+echo "next: from these figures write the cards hierarchy/pretrained/cards/cmu-v1.card.json (decoder, learned prior)," \
+    "distill/npmp/cards/cmu-v1.card.json (the multi-clip policy) and hierarchy/pretrained/cards/policies/cmu-v1/" \
+    "(the task policies), then: mocap-hierarchy decoder package $runs/distill/decoder.safetensors" \
+    "hierarchy/pretrained/cmu-v1.safetensors --card ... --scores $runs/eval_seen_noisy.json --prior" \
+    "$runs/distill/prior.safetensors --prior-out hierarchy/pretrained/priors/cmu-v1.safetensors;" \
+    "mocap-hierarchy distill package $runs/distill distill/npmp/pretrained/cmu-v1.safetensors --card ... --scores" \
+    "$runs/eval_seen_noisy.json; mocap-hierarchy transfer package $runs/ship/TASK/cmu-v1/seed0" \
+    "hierarchy/pretrained/policies/cmu-v1/TASK.safetensors --card ..."
