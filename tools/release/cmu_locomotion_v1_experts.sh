@@ -45,3 +45,8 @@ a=$!
 lane_b > $out/../lane_b.log 2>&1 &
 b=$!
 wait $a $b
+# Every expert has finished: the rest of the release follows at once (NEXT=0 stops here); its log is
+# runs/release-cmu-v1/decoder.log.
+if [ "${NEXT:-1}" = 1 ]; then
+    exec tools/release/cmu_v1_decoder.sh > $out/../decoder.log 2>&1
+fi
