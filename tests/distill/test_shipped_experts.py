@@ -321,14 +321,20 @@ def test_every_shipped_expert_loads_with_a_card(name, clip_library):
     assert actions.shape == (1, policy.spec.action_size) and np.isfinite(actions).all()
 
 
-def test_the_quickstart_evaluates_every_expert_of_a_shipped_group_beside_its_card(ship, snippet, clip_library):
+def test_the_quickstart_evaluates_every_expert_of_a_shipped_group_beside_its_card(
+    ship, snippet, clip_library, tmp_path
+):
     from mocap_hierarchy.quickstart import QuickstartConfig
     from mocap_hierarchy.quickstart.shipped import shipped_expert_names, shipped_experts_stage
+    from tests.tasks.test_recording import verify
 
     assert shipped_expert_names(GROUP) == sorted([f"{GROUP}/{OTHER}", f"{GROUP}/{snippet}"])
     assert shipped_expert_names("not-shipped") == []
-    result = shipped_experts_stage(QuickstartConfig(shipped_experts=GROUP, skill_episodes=4))
+    config = QuickstartConfig(shipped_experts=GROUP, skill_episodes=4, expert_recordings=(snippet,))
+    result = shipped_experts_stage(tmp_path, config)
     assert result["episodes"] == 4 and result["action_noise"] == 0.1
+    assert result["recordings"] == {snippet: str(tmp_path / f"shipped_expert_{snippet}.rrd")}
+    verify(Path(result["recordings"][snippet]))  # the expert tracking its snippet from the first frame
     rows = {row["snippet"]: row for row in result["rows"]}
     assert set(rows) == {OTHER, snippet}
     assert (
