@@ -1,8 +1,9 @@
-"""tools/release/: the model card JSON of a trained expert, written from its run folder."""
+"""tools/release/: the model card JSON of a trained expert, and every command of the release scripts parsing."""
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -118,3 +119,62 @@ def test_expert_status_reads_where_a_run_stands_and_its_final_evaluation(tmp_pat
     waiting.mkdir()
     not_started = expert_status.run_status(waiting)
     assert not_started["steps"] == 0 and not not_started["finished"] and not_started["last_length"] is None
+
+
+FLAG_PATTERN = re.compile(r"\$\{(\w+)(?::-[^{}]*)?\}|\$(\w+)")
+
+
+def release_script_commands(script: Path) -> list[str]:
+    """The ``mocap-hierarchy`` commands of a release script, as the shell would run them with its defaults.
+
+    Continuation lines are joined and comments dropped; a variable whose default holds flags (``ROLLOUTS`` is
+    ``--n-start 20 --n-rsi 80``) becomes that default, ``"$@"`` nothing and any other variable or arithmetic
+    ``1`` (a count, a path and a name all parse as ``1``).
+    """
+    text = script.read_text().replace("\\\n", " ")
+    flag_defaults = {
+        name: value for name, value in re.findall(r"^(\w+)=\$\{\1:-(-.*)\}", text, flags=re.M) if value.startswith("-")
+    }
+    commands = []
+    for line in text.splitlines():
+        if line.strip().startswith("echo"):  # a hint printed for the reader, not a command
+            continue
+        line = re.sub(r"\s#.*$", "", line).replace('"$@"', "")
+        line = re.sub(r"\$\(\([^()]*\)\)", "1", line)
+        line = FLAG_PATTERN.sub(lambda m: flag_defaults.get(m[1] or m[2], "1"), line)
+        for part in re.split(r"&&|\|\||;|\||&|>", line):
+            words = part.split()
+            while words and "=" in words[0] and not words[0].startswith("-"):  # VAR=value prefixes
+                words.pop(0)
+            if words[:2] == ["nice", "-n"]:  # a lane at low priority
+                words = words[3:]
+            if words and words[0] == "mocap-hierarchy":  # a command, not a word of an echoed hint
+                commands.append(" ".join(words))
+    return commands
+
+
+@pytest.mark.parametrize("script", sorted((ROOT / "tools" / "release").glob("*.sh")), ids=lambda path: path.name)
+def test_every_command_of_a_release_script_parses(script):
+    from mocap_hierarchy.cli import build_parser
+    from tests.docs_checks import check_command_line
+
+    commands = release_script_commands(script)
+    assert commands, f"{script.name} runs no mocap-hierarchy command"
+    parser = build_parser()
+    assert [(command, check_command_line(parser, command)) for command in commands] == [
+        (command, None) for command in commands
+    ]
+
+
+def test_a_release_command_with_a_flag_the_program_lacks_is_found(tmp_path):
+    script = tmp_path / "release.sh"
+    script.write_text(
+        'STEPS=${STEPS:-7700}\nROLLOUTS=${ROLLOUTS:---n-start 20}\nmocap-hierarchy rollout --experts "$x" \\\n'
+        "    --out $runs/dataset $ROLLOUTS --no-such-flag 1  # comment\n"
+    )
+    (command,) = release_script_commands(script)
+    assert command == 'mocap-hierarchy rollout --experts "1" --out 1/dataset --n-start 20 --no-such-flag 1'
+    from mocap_hierarchy.cli import build_parser
+    from tests.docs_checks import check_command_line
+
+    assert "--no-such-flag" in (check_command_line(build_parser(), command) or "")
