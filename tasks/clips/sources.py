@@ -124,9 +124,20 @@ def resolve_clip_file(
         cmu = find_cmu_file()
         if cmu is None:
             wanted = sorted(c for c in clip_ids if not c.startswith("SYN_"))
-            raise ClipSourceError(f"clips {wanted[:5]} need the CMU data. {cmu_file_help()}")
+            raise ClipSourceError(f"clips {wanted[:5]} need the CMU data.{_shipped_hint(wanted)} {cmu_file_help()}")
         return cmu
     return ensure_synthetic_library(progress=progress)
+
+
+def _shipped_hint(clip_ids: list[str]) -> str:
+    """`` They are in the shipped library NAME: ...`` when one shipped real library holds every clip, else empty."""
+    from tasks.clips.real.library import REAL_LIBRARIES, library_clips
+
+    for name in sorted(REAL_LIBRARIES):
+        held = {clip.clip_id for clip in library_clips(name)}
+        if set(clip_ids) <= held:
+            return f" They are in the shipped clip library {name}: pass --clips {name} (nothing to download). Or:"
+    return ""
 
 
 SYNTHETIC_LIBRARY_NAME = "synthetic"

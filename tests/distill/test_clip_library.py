@@ -86,7 +86,8 @@ def test_expert_eval_rollout_and_distill_eval_track_the_recorded_library(real_ex
     assert [r["snippet"] for r in json.loads(evaluation.read_text())["results"]] == [SNIPPET]
     legacy = without_record(real_expert, tmp_path / "legacy")  # still read; the default source applies
     assert main(["expert", "eval", str(legacy), "--episodes", "1"]) == 2
-    assert "need the CMU data" in capsys.readouterr().err
+    error = capsys.readouterr().err
+    assert "need the CMU data" in error and f"They are in the shipped clip library {LIBRARY}: pass --clips" in error
     assert main(["expert", "eval", str(legacy), "--episodes", "1", "--clips", LIBRARY]) == 0  # --clips still works
 
     dataset, distilled = tmp_path / "dataset", tmp_path / "distill"

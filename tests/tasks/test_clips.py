@@ -77,8 +77,15 @@ def test_frame_range_follows_dm_control_slicing():
 
 def test_cmu_clip_without_file_says_where_to_put_it(monkeypatch, tmp_path):
     monkeypatch.setattr(Path, "home", lambda: tmp_path)
-    with pytest.raises(ClipSourceError, match=r"\.dm_control.*MOCAP_HIERARCHY_CMU_FILE"):
+    with pytest.raises(ClipSourceError, match=r"\.dm_control.*MOCAP_HIERARCHY_CMU_FILE") as shipped:
         resolve_clip_file(None, ["CMU_016_22"])
+    # a clip the shipped real library holds: the library is named first, as nothing needs downloading
+    assert "They are in the shipped clip library cmu-locomotion-v1: pass --clips cmu-locomotion-v1" in str(
+        shipped.value
+    )
+    with pytest.raises(ClipSourceError, match=r"\.dm_control") as elsewhere:
+        resolve_clip_file(None, ["CMU_016_22", "CMU_140_01"])  # the second is in no shipped library
+    assert "shipped clip library" not in str(elsewhere.value)
 
 
 def test_cmu_file_from_environment(monkeypatch, tmp_path):
