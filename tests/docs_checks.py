@@ -120,13 +120,22 @@ def command_lines(files: Iterable[Path], program: str = "mocap-hierarchy") -> li
     for path in files:
         for block in code_blocks(path.read_text(), "bash"):
             for line in block.replace("\\\n", "").splitlines():
-                for part in re.split(r"&&|\|\||;|\|", line.split(" #")[0]):
-                    words = part.strip().split()
-                    while words and ("=" in words[0] and not words[0].startswith("-")):  # VAR=value prefixes
-                        words.pop(0)
-                    if words and words[0] == program:
-                        found.append((path, " ".join(words)))
+                found += [(path, command) for command in line_commands(line.split(" #")[0], program)]
     return found
+
+
+def line_commands(line: str, program: str = "mocap-hierarchy", separators: str = r"&&|\|\||;|\|") -> list[str]:
+    """The ``program`` invocations of one shell line: split at ``separators``, ``VAR=value``, ``nice -n N`` dropped."""
+    commands = []
+    for part in re.split(separators, line):
+        words = part.strip().split()
+        while words and ("=" in words[0] and not words[0].startswith("-")):  # VAR=value prefixes
+            words.pop(0)
+        if words[:2] == ["nice", "-n"]:  # a job at low priority
+            words = words[3:]
+        if words and words[0] == program:
+            commands.append(" ".join(words))
+    return commands
 
 
 def optional_groups_removed(line: str) -> str:

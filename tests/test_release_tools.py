@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from hierarchy.cards.model_card import check_card
+from tests.docs_checks import line_commands
 from tests.script_loading import ROOT, load_script
 
 expert_card = load_script(ROOT / "tools" / "release" / "expert_card.py", "release_expert_card")
@@ -132,9 +133,7 @@ def release_script_commands(script: Path) -> list[str]:
     ``1`` (a count, a path and a name all parse as ``1``).
     """
     text = script.read_text().replace("\\\n", " ")
-    flag_defaults = {
-        name: value for name, value in re.findall(r"^(\w+)=\$\{\1:-(-.*)\}", text, flags=re.M) if value.startswith("-")
-    }
+    flag_defaults = dict(re.findall(r"^(\w+)=\$\{\1:-(-.*)\}", text, flags=re.M))
     commands = []
     for line in text.splitlines():
         if line.strip().startswith("echo"):  # a hint printed for the reader, not a command
@@ -142,14 +141,7 @@ def release_script_commands(script: Path) -> list[str]:
         line = re.sub(r"\s#.*$", "", line).replace('"$@"', "")
         line = re.sub(r"\$\(\([^()]*\)\)", "1", line)
         line = FLAG_PATTERN.sub(lambda m: flag_defaults.get(m[1] or m[2], "1"), line)
-        for part in re.split(r"&&|\|\||;|\||&|>", line):
-            words = part.split()
-            while words and "=" in words[0] and not words[0].startswith("-"):  # VAR=value prefixes
-                words.pop(0)
-            if words[:2] == ["nice", "-n"]:  # a lane at low priority
-                words = words[3:]
-            if words and words[0] == "mocap-hierarchy":  # a command, not a word of an echoed hint
-                commands.append(" ".join(words))
+        commands += line_commands(line, separators=r"&&|\|\||;|\||&|>")
     return commands
 
 
