@@ -14,6 +14,7 @@ import torch
 from safetensors import safe_open
 
 import distill.experts.shipped as shipped
+from distill.experts.clip_library import recorded_library
 from distill.experts.config import EvaluationConfig
 from distill.experts.files import ExpertDir, ExpertFilesError, find_experts
 from distill.experts.loading import load_expert
@@ -315,7 +316,8 @@ def test_every_shipped_expert_loads_with_a_card(name, clip_library):
     assert card.get("summary") and card.get("commands") and card.get("scores"), f"{name}: incomplete model card"
     root = shipped.shipped_experts()[name]
     assert policy.spec.snippet == root.name == str(ExpertDir(root).snippet())
-    env = ClipTrackingEnv(evaluation_task((policy.spec.snippet,), policy, EvaluationConfig(), None))
+    clips = recorded_library(root)  # the library it was trained on (a real group's), else its ids' default
+    env = ClipTrackingEnv(evaluation_task((policy.spec.snippet,), policy, EvaluationConfig(), clips))
     observation, _ = env.reset(seed=0)
     actions = policy.mean_actions({k: v[None] for k, v in observation.items()})
     assert actions.shape == (1, policy.spec.action_size) and np.isfinite(actions).all()

@@ -5,10 +5,12 @@
 # prior's samples on synthetic data: docs/experiments/2026-11-27-online-distillation.md), evaluates it on its own
 # snippets (deterministic and the paper's noisy protocol) and on real snippets of trials it never saw, measures how
 # long its prior's samples keep the humanoid up, and compares transfer on it against synthetic-v3 at equal steps
-# (velocity control in any direction and go-to-target, three seeds each, one decoder per core), then trains the task
-# policies that ship on it (1M steps each).
-# Resumable: rerun it after a kill; every finished step is skipped (each command resumes or its output exists).
-# Where it stands: the files under runs/release-cmu-v1/ (dataset/, distill/, eval_*.json, transfer/).
+# (velocity control in any direction and go-to-target, three seeds each), and trains the task policies that ship on it
+# (1M steps each). synthetic-v3's side of the comparison starts at once, at low priority, beside the rest; cmu-v1's
+# side runs beside the shipped task policies.
+# Resumable: rerun it after a kill; every finished step is skipped (each command resumes or its output exists); a
+# step that fails stops the runs beside it. Where it stands: the files under runs/release-cmu-v1/ (dataset/,
+# distill/, eval_*.json, transfer/, ship/). EXPERTS=DIR reads the experts from another folder (rehearsals).
 # A rehearsal at tiny budgets, writing nothing into the package (about 10 minutes on 2 cores):
 #   PARTIAL=1 OUT=/tmp/rehearsal PRETRAINED=/tmp/rehearsal/experts CARDS=/tmp/rehearsal/cards STEPS=20 \
 #   TRANSFER_STEPS=4096 SHIP_STEPS=4096 ROLLOUTS="--n-start 1 --n-rsi 1" EPISODES=2 tools/release/cmu_v1_decoder.sh
@@ -17,7 +19,7 @@ cd "$(dirname "$0")/../.."
 export OMP_NUM_THREADS=1
 [ -z "${VIRTUAL_ENV:-}" ] && [ -f .venv/bin/activate ] && . .venv/bin/activate  # the README install
 group=cmu-locomotion-v1
-experts=runs/release-cmu-v1/experts
+experts=${EXPERTS:-runs/release-cmu-v1/experts}
 runs=${OUT:-runs/release-cmu-v1}
 pretrained=${PRETRAINED:-distill/experts/pretrained/$group}
 cards=${CARDS:-distill/experts/cards/$group}
@@ -33,6 +35,27 @@ if [ "$finished" -lt 24 ] && [ -z "${PARTIAL:-}" ]; then
         "(PARTIAL=1 goes on with the finished ones, for a rehearsal)" >&2
     exit 1
 fi
+
+# 0. Transfer at equal steps against synthetic-v3 (step 6), three seeds of each task: synthetic-v3's runs need none of
+#    this release, so they start at once, beside steps 1-5, and take the time those leave a core idle.
+transfer() {  # task label decoder prior seed [settings...]
+    local task=$1 label=$2 decoder=$3 prior=$4 seed=$5
+    shift 5
+    mocap-hierarchy transfer train --task "$task" --decoder "$decoder" --latent-prior "$prior" \
+        --out "${TRANSFER_ROOT:-$runs/transfer}/$task/$label/seed$seed" --seed "$seed" --initial-std 1.0 "$@" \
+        --steps "$TRANSFER_STEPS" --n-envs 8 --steps-per-update 4096 --minibatch-size 512 \
+        --hidden-layers 256 256 --learning-rate 3e-4 --no-subprocess-envs --checkpoint-every 100000
+}
+lane() {  # label decoder prior
+    for seed in 0 1 2; do
+        transfer velocity_control "$@" "$seed" --set max_speed=1.5
+        transfer go_to_target "$@" "$seed" --set approach_reward=10
+    done
+}
+(renice -n 10 -p $BASHPID > /dev/null; lane synthetic-v3 synthetic-v3 synthetic-v3) &  # at low priority: it waits
+v3=$!
+# A step that fails stops the lanes and their runs too (a rerun resumes them; two copies of a run never write at once).
+trap 'for job in $(jobs -p); do pkill -P "$job"; kill "$job"; done 2> /dev/null || true' EXIT
 
 # 1. The expert group: a card from each run, then the packaged directory (float16, pickle-free).
 for run in $experts/*/; do
@@ -79,25 +102,15 @@ unseen=$(mocap-hierarchy clips snippets --clips $group | grep -v -F -f <(printf 
 [ -f $runs/prior_survival.json ] || python experiments/prior_survival.py $runs/distill --episodes "$EPISODES" \
     --json $runs/prior_survival.json
 
-# 6. Transfer at equal steps against synthetic-v3, three seeds, one decoder per core.
-transfer() {  # task label decoder prior seed [settings...]
-    local task=$1 label=$2 decoder=$3 prior=$4 seed=$5
-    shift 5
-    mocap-hierarchy transfer train --task "$task" --decoder "$decoder" --latent-prior "$prior" \
-        --out "${TRANSFER_ROOT:-$runs/transfer}/$task/$label/seed$seed" --seed "$seed" --initial-std 1.0 "$@" \
-        --steps "$TRANSFER_STEPS" --n-envs 8 --steps-per-update 4096 --minibatch-size 512 \
-        --hidden-layers 256 256 --learning-rate 3e-4 --no-subprocess-envs --checkpoint-every 100000
-}
-lane() {  # label decoder prior
-    for seed in 0 1 2; do
-        transfer velocity_control "$@" "$seed" --set max_speed=1.5
-        transfer go_to_target "$@" "$seed" --set approach_reward=10
-    done
-}
-lane synthetic-v3 synthetic-v3 synthetic-v3 &
-v3=$!
+# 6. The same comparison on cmu-v1, one lane, beside the task policies that ship on it (step 7): seed 0 of each task
+#    (chosen before any result), 1M steps, as synthetic-v3's were trained, one after the other on the other core.
 lane cmu-v1 $runs/packaged/cmu-v1.safetensors $runs/packaged/cmu-v1-prior.safetensors &
 real=$!
+packaged="$runs/packaged/cmu-v1.safetensors $runs/packaged/cmu-v1-prior.safetensors"
+# shellcheck disable=SC2086  # packaged holds the decoder and its prior
+TRANSFER_ROOT=$runs/ship TRANSFER_STEPS=$SHIP_STEPS transfer velocity_control cmu-v1 $packaged 0 --set max_speed=1.5
+# shellcheck disable=SC2086
+TRANSFER_ROOT=$runs/ship TRANSFER_STEPS=$SHIP_STEPS transfer go_to_target cmu-v1 $packaged 0 --set approach_reward=10
 wait $v3
 wait $real
 python experiments/transfer_table.py $runs/transfer/velocity_control
@@ -109,17 +122,7 @@ velocity_runs=$(ls -d $runs/transfer/velocity_control/*/seed*)
 [ -f $runs/go_to_target_300k.json ] || python experiments/target_reaching.py \
     $(ls -d $runs/transfer/go_to_target/*/seed*) --episodes 50 --json $runs/go_to_target_300k.json
 
-# 7. The task policies that ship on cmu-v1: seed 0 of each task (chosen before any result), 1M steps, as
-#    synthetic-v3's were trained; then the same evaluations as their cards quote.
-packaged="$runs/packaged/cmu-v1.safetensors $runs/packaged/cmu-v1-prior.safetensors"
-# shellcheck disable=SC2086  # packaged holds the decoder and its prior
-TRANSFER_ROOT=$runs/ship TRANSFER_STEPS=$SHIP_STEPS transfer velocity_control cmu-v1 $packaged 0 --set max_speed=1.5 &
-ship_velocity=$!
-# shellcheck disable=SC2086
-TRANSFER_ROOT=$runs/ship TRANSFER_STEPS=$SHIP_STEPS transfer go_to_target cmu-v1 $packaged 0 --set approach_reward=10 &
-ship_target=$!
-wait $ship_velocity
-wait $ship_target
+# 7. The shipped task policies' evaluations, as their cards quote.
 [ -f $runs/ship_velocity_control.json ] || python experiments/speed_tracking.py \
     $runs/ship/velocity_control/cmu-v1/seed0 --labels shipped --episodes 30 --steps 1000 \
     --out $runs/ship_velocity_control.png --json $runs/ship_velocity_control.json
