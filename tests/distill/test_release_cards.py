@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from hierarchy.cards.model_card import check_card
-from tools.release import release_cards
+from tools.release import release_cards, release_results
 
 
 def _write(path: Path, record: dict) -> None:
@@ -39,7 +39,9 @@ def release(rollout_dir, tmp_path) -> tuple[Path, Path]:
     (runs / "dataset").symlink_to(rollout_dir)
     npmp = {"latent_size": 60, "latent_bound": 3.0, "encoder_layers": [512, 512], "decoder_layers": [512] * 3}
     distilled = {"npmp": {**npmp, "kl_weight": 0.1, "prior": "learned"}, "trainer": {"batch_size": 128}}
-    _write(runs / "distill" / "distill.json", {**distilled, "online": {"experts": ["e"]}, "steps": 7700, "seconds": 5400.0})
+    _write(
+        runs / "distill" / "distill.json", {**distilled, "online": {"experts": ["e"]}, "steps": 7700, "seconds": 5400.0}
+    )
     _write(runs / "eval_seen_noisy.json", _evaluation(0.93, 0.8, 120.0, 0.97, ["A-0-9"]))
     _write(runs / "eval_seen.json", _evaluation(0.95, 0.9, 110.0, 0.98, ["A-0-9"]))
     _write(
@@ -94,7 +96,7 @@ def test_the_cards_carry_the_runs_figures_and_pass_the_card_check(release, tmp_p
         and task["scores"]["control steps survived (mean, at most 1000)"] == 512.3
     )
     assert task["budgets"]["wall time"].startswith("35 minutes (2100 s)")  # 1200 s, then 900 s after the resume
-    assert task["budgets"]["training return at the end"] == "30.0 (episode mean)"
+    assert task["budgets"]["training return at the end"] == "30.0 (episode mean, the task's own reward)"
     assert "2 x 256, step size 3e-4" in task["budgets"]["steps"]
 
 
@@ -105,3 +107,41 @@ def test_a_missing_measurement_names_the_script_that_writes_it(release, tmp_path
         release_cards.main([str(runs), "--expert-cards", str(cards), "--root", str(tmp_path / "out")])
     with pytest.raises(FileNotFoundError, match="holds no expert card"):
         release_cards.experts_summary(tmp_path / "nowhere")
+
+
+def _transfer_run(folder: Path, returns: list[float]) -> None:
+    rows = ["time/total_timesteps,rollout/ep_rew_mean,rollout/task_return_mean"]
+    rows += [f"{(i + 1) * 4096},{r + 100},{r}" for i, r in enumerate(returns)]  # the training's own term on top
+    folder.mkdir(parents=True)
+    (folder / "progress.csv").write_text("\n".join(rows) + "\n")
+
+
+def test_the_results_file_averages_each_decoders_seeds_and_judges_the_shipped_policy(release, tmp_path):
+    runs, _ = release
+    velocity, target = {}, {"seeds": [1000, 1050]}
+    for label, slopes in (("cmu-v1", (0.6, 0.8)), ("synthetic-v3", (0.2, 0.4))):
+        for seed, slope in enumerate(slopes):
+            run = runs / "transfer" / "velocity_control" / label / f"seed{seed}"
+            _transfer_run(run, [1.0, 10.0 * (seed + 1)])
+            velocity[str(run)] = {"episodes": 30, "slope": slope, "heading_cosine": 0.5}
+        run = runs / "transfer" / "go_to_target" / label / "seed0"
+        _transfer_run(run, [2.0])
+        target[str(run)] = {"episodes": 50, "task_return": 3.0 if label == "cmu-v1" else 1.0}
+    _write(runs / "velocity_control_300k.json", {"settings": {}, "policies": velocity})
+    _write(runs / "go_to_target_300k.json", target)
+    _write(runs / "ship_go_to_target.json", {"seeds": [1000], "shipped": {"episodes": 50, "task_return": 4.0}})
+    assert release_results.main([str(runs), "--json", str(tmp_path / "results.json")]) == 0
+    results = json.loads((tmp_path / "results.json").read_text())
+    cmu = results["transfer"]["velocity_control"]["cmu-v1"]
+    assert cmu["seeds"] == 2 and cmu["slope"] == pytest.approx({"mean": 0.7, "min": 0.6, "max": 0.8})
+    assert cmu["training_return"] == {"mean": 15.0, "min": 10.0, "max": 20.0}  # the task's own return, last update
+    assert results["transfer"]["go_to_target"]["synthetic-v3"]["task_return"]["mean"] == 1.0
+    unseen = results["multi_clip"]["unseen"]
+    assert unseen == {**unseen, "snippets": 3, "trials": 2, "success": 0.25} and "fraction_of_experts" not in unseen
+    assert results["multi_clip"]["seen_noisy"]["fraction_of_experts"] == {"normalized_reward": 0.93}
+    assert results["prior_survival_steps"] == 320 and results["shipped"]["go_to_target"]["task_return"] == 4.0
+    assert results["shipped"]["velocity_control"]["follows_commands"]  # slope 0.61, 0.7 a step against 0.5 still
+    shipped = json.loads((runs / "ship_velocity_control.json").read_text())
+    shipped["policies"]["shipped"]["still_reward_per_step"] = 0.75  # standing still would earn more
+    _write(runs / "ship_velocity_control.json", shipped)
+    assert not release_results.release_results(runs)["shipped"]["velocity_control"]["follows_commands"]

@@ -128,6 +128,8 @@ velocity_runs=$(ls -d $runs/transfer/velocity_control/*/seed*)
     --out $runs/ship_velocity_control.png --json $runs/ship_velocity_control.json
 [ -f $runs/ship_go_to_target.json ] || python experiments/target_reaching.py $runs/ship/go_to_target/cmu-v1/seed0 \
     --labels shipped --episodes 50 --json $runs/ship_go_to_target.json
+# Every figure the results page quotes, in one file (docs/results/release_cmu_v1.json once the release ships).
+python tools/release/release_results.py $runs --json $runs/release_results.json
 card=hierarchy/pretrained/cards
 echo "next: write the cards from these figures and read them (python tools/release/release_cards.py $runs)," \
     "then package: mocap-hierarchy decoder package $runs/distill/decoder.safetensors" \

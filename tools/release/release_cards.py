@@ -191,13 +191,22 @@ def progress_rows(run: Path) -> list[dict[str, str]]:
         return list(csv.DictReader(handle))
 
 
+def task_return(run: Path) -> float:
+    """A transfer run's last mean training-episode return: the task's own reward where it logged it."""
+    rows = progress_rows(run)
+    for key in ("rollout/task_return_mean", "rollout/ep_rew_mean"):
+        values = [float(row[key]) for row in rows if row.get(key)]
+        if values:
+            return values[-1]
+    raise ValueError(f"{run}/progress.csv logs no training return yet")
+
+
 def task_policy_card(runs: Path, name: str, task: str) -> dict[str, Any]:
     """The card of a shipped task policy trained on the packaged decoder (`transfer package ... --card`)."""
     run = runs / "ship" / task / name / "seed0"
     settings = read_json(run / "transfer.json")["config"]
     ppo = settings["ppo"]
-    rows = progress_rows(run)
-    final_return = next(float(r["rollout/ep_rew_mean"]) for r in reversed(rows) if r.get("rollout/ep_rew_mean"))
+    final_return = task_return(run)
     evaluation = read_json(runs / f"ship_{task}.json")
     card = f"hierarchy/pretrained/cards/policies/{name}/{task}.card.json"
     if task == "velocity_control":
@@ -249,7 +258,7 @@ def task_policy_card(runs: Path, name: str, task: str) -> dict[str, Any]:
             "wall time": f"{_minutes(training_seconds(run / 'progress.csv'))} on a 2-core CPU machine beside "
             "another training",
             "machine": "2 CPU cores, no GPU",
-            "training return at the end": f"{final_return:.1f} (episode mean)",
+            "training return at the end": f"{final_return:.1f} (episode mean, the task's own reward)",
             "seed": "0, chosen before any result",
         },
         "commands": [
