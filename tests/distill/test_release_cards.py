@@ -118,7 +118,8 @@ def _transfer_run(folder: Path, returns: list[float]) -> None:
 
 def test_the_results_file_averages_each_decoders_seeds_and_judges_the_shipped_policy(release, tmp_path):
     runs, _ = release
-    velocity, target = {}, {"seeds": [1000, 1050]}
+    velocity: dict[str, dict] = {}
+    target: dict[str, object] = {"seeds": [1000, 1050]}
     for label, slopes in (("cmu-v1", (0.6, 0.8)), ("synthetic-v3", (0.2, 0.4))):
         for seed, slope in enumerate(slopes):
             run = runs / "transfer" / "velocity_control" / label / f"seed{seed}"
