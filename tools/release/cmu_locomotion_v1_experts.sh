@@ -27,7 +27,7 @@ train() {  # snippet [extra flags]
 }
 
 continued() {  # snippet steps: a finished run continues from its kept expert (its first run moves to experts-first/)
-    local snippet=$1 steps=$2 first=$out/../experts-first
+    local snippet=$1 steps=$2 first=runs/release-cmu-v1/experts-first
     if [ ! -d "$first/$snippet" ]; then
         mkdir -p "$first"
         mv "$out/$snippet" "$first/"
