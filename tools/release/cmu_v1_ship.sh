@@ -25,13 +25,9 @@ fi
 
 # 0. The expert group again from its runs, with the same cards (same weights; harmless to repeat): the files packaged
 #    before experts recorded their library's name in their provenance carry the path of its cached clip file.
-experts=${EXPERTS:-runs/release-cmu-v1/experts}
-expert_cards=${EXPERT_CARDS:-distill/experts/cards/cmu-locomotion-v1}
-for run in "$experts"/*/; do
-    snippet=$(basename "$run")
-    mocap-hierarchy expert package "$run" "$dest/distill/experts/pretrained/cmu-locomotion-v1" \
-        --card "$expert_cards/$snippet.card.json" --clips cmu-locomotion-v1
-done
+AGAIN=1 tools/release/package_experts.sh "${EXPERTS:-runs/release-cmu-v1/experts}" \
+    "$dest/distill/experts/pretrained/cmu-locomotion-v1" "${EXPERT_CARDS:-distill/experts/cards/cmu-locomotion-v1}" \
+    cmu-locomotion-v1
 
 # 1. The cards, every figure read from the runs' files.
 python -m tools.release.release_cards "$runs" --decoder $name --root "$dest" ${EXPERT_CARDS:+--expert-cards "$EXPERT_CARDS"}
