@@ -7,7 +7,7 @@
 # velocity control where it follows its commands: speed slope >= 0.5 and more reward per step than standing still).
 # Last, the release's figures go where the results page quotes them (docs/results/release_cmu_v1.json).
 # Read the cards it wrote before committing; after editing one, rerun this script: every file is written again from
-# the same runs (same weights, new card). Nothing is trained or downloaded; a few minutes.
+# the same runs (same weights, new card). Nothing is trained or downloaded; about 3 minutes of CPU.
 # DEST=DIR writes under another folder than the repository (a rehearsal; EXPERTS=DIR and EXPERT_CARDS=DIR name the
 # expert runs and their cards):
 #   OUT=/tmp/rehearsal DEST=/tmp/ship tools/release/cmu_v1_ship.sh
