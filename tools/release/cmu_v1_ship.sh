@@ -61,7 +61,8 @@ for task in velocity_control go_to_target; do
     esac
 done
 
-# 4. The figures the results page quotes.
+# 4. The figures the results page quotes, and its quotes of them rewritten.
 mkdir -p "$dest/docs/results"
 cp "$results" "$dest/docs/results/release_cmu_v1.json"
+[ "$dest" = . ] && python tools/quoted_values.py docs/results/release_cmu_v1.json  # the pages' quotes of it
 echo "shipped under $dest: read the cards (git diff), then the checklist 'Shipping it' of docs/guides/real-release.md"
