@@ -248,3 +248,11 @@ def test_a_prior_packaged_with_its_float16_decoder_fits_it_and_keeps_its_weights
     assert main([*never, "--prior", str(prior_file)]) == 2
     assert "--prior-out" in capsys.readouterr().err
     assert not list(tmp_path.glob("never*"))
+
+
+def test_a_card_names_rollout_files_recorded_as_paths_by_their_names(tmp_path):
+    decoder = small_decoder()
+    made_here = ["/home/me/runs/dataset/SYN_stand.hdf5", "/home/me/runs/dataset/SYN_wave.hdf5"]
+    decoder.spec = dataclasses.replace(decoder.spec, provenance={"dataset": made_here, "steps": 20})
+    page = card_page(decoder.save(tmp_path / "decoder.safetensors"))  # a file written before packaging named them
+    assert "- **dataset**: SYN_stand.hdf5, SYN_wave.hdf5" in section(page, "Provenance") and "/home/me" not in page
