@@ -158,6 +158,7 @@ def test_the_results_file_averages_each_decoders_seeds_and_judges_the_shipped_po
     assert unseen == {**unseen, "snippets": 3, "trials": 2, "success": 0.25} and "fraction_of_experts" not in unseen
     assert results["multi_clip"]["seen_noisy"]["fraction_of_experts"] == {"normalized_reward": 0.93}
     assert results["prior_survival_steps"] == 320 and results["shipped"]["go_to_target"]["task_return"] == 4.0
+    assert results["prior_mean_survival_steps"] == 91  # driven by its prior's mean alone
     assert results["shipped"]["velocity_control"]["follows_commands"]  # slope 0.61, 0.7 a step against 0.5 still
     shipped = json.loads((runs / "ship_velocity_control.json").read_text())
     shipped["policies"]["shipped"]["still_reward_per_step"] = 0.75  # standing still would earn more

@@ -78,10 +78,10 @@ def mean_over(evaluation: dict[str, Any], measure: str) -> float:
     return float(evaluation["over_snippets"][measure]["mean"])
 
 
-def prior_steps(survival: dict[str, Any]) -> float:
-    """Mean control steps the decoder kept the humanoid up, driven by samples of its prior."""
+def prior_steps(survival: dict[str, Any], driven_by: str = "samples") -> float:
+    """Mean control steps the decoder kept the humanoid up, driven by samples of its prior (``mean``: its mean)."""
     (run,) = survival["runs"].values()
-    return statistics.fmean(run["samples"])
+    return statistics.fmean(run[driven_by])
 
 
 TASK_SCORES = {

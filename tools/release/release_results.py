@@ -95,6 +95,7 @@ def release_results(runs: Path) -> dict[str, Any]:
     return {
         "multi_clip": multi_clip(runs),
         "prior_survival_steps": prior_steps(read_json(runs / "prior_survival.json")),
+        "prior_mean_survival_steps": prior_steps(read_json(runs / "prior_survival.json"), "mean"),
         "transfer": transfer(runs),
         "shipped": shipped(runs),
     }
