@@ -74,8 +74,8 @@ class QuickstartConfig:
     demo_speeds: tuple[float, ...] = (0.4, 0.8, 1.2)
     skill_episodes: int = 20
     skill_steps: int = 1000
-    shipped_experts: str = "synthetic-v3"
-    expert_recordings: tuple[str, ...] = ("SYN_walk_slow-0-182", "SYN_turn_left-0-182")
+    shipped_experts: str = "cmu-locomotion-v1"
+    expert_recordings: tuple[str, ...] = ("CMU_016_22-0-82", "CMU_016_27-0-64", "CMU_013_11-0-112")
     shipped_gpt: str = "synthetic-v3"
     completion_contexts: int = 20
     completion_snippet: str = "SYN_walk_slow-0-182"
