@@ -172,7 +172,12 @@ def fakes(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> FakeStages:
 
 
 def tiny(tmp_path: Path, **changes) -> QuickstartConfig:
-    settings = {"expert_snippets": ("SYN_stand-0-181",), "expert_recordings": ("SYN_walk_slow-0-182",), **changes}
+    settings = {
+        "expert_snippets": ("SYN_stand-0-181",),
+        "shipped_experts": "synthetic-v3",  # the tests' group, whichever group the quickstart leads with
+        "expert_recordings": ("SYN_walk_slow-0-182",),
+        **changes,
+    }
     return QuickstartConfig(out=str(tmp_path / "qs"), **settings)
 
 

@@ -83,7 +83,7 @@ def test_a_real_card_names_its_clip_library_run_folder_and_card_file(tmp_path):
     run = fake_run(tmp_path / "runs" / "experts" / "CMU_016_22-0-82", [600], clips="cmu-locomotion-v1", steps=10**6)
     card_file = tmp_path / "cards" / "CMU_016_22-0-82.card.json"
     card = expert_card.expert_card(run, "cmu-locomotion-v1", card_file)
-    assert check_card(card, "the test card") == card and "notes" not in card  # only synthetic-v3 has a default note
+    assert check_card(card, "the test card") == card and card["notes"] == [expert_card.REAL_NOTE]  # the group's
     assert "`CMU_016_22-0-82` of the clip library `cmu-locomotion-v1` (`--profile" in card["summary"]
     train, package = card["commands"]
     assert train == (
@@ -99,6 +99,7 @@ def test_a_real_card_names_its_clip_library_run_folder_and_card_file(tmp_path):
     given = expert_card.expert_card(older, "cmu-locomotion-v1", clips="cmu-locomotion-v1", note="First of its kind.")
     assert "--clips cmu-locomotion-v1 --out" in given["commands"][0] and given["notes"] == ["First of its kind."]
     assert "notes" not in expert_card.expert_card(run, "synthetic-v3", note="")
+    assert "notes" not in expert_card.expert_card(run, "my-group")  # a group of one's own has no default note
 
 
 def test_expert_status_reads_where_a_run_stands_and_its_final_evaluation(tmp_path, monkeypatch):

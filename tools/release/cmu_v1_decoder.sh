@@ -128,11 +128,15 @@ velocity_runs=$(ls -d $runs/transfer/velocity_control/*/seed*)
     --out $runs/ship_velocity_control.png --json $runs/ship_velocity_control.json
 [ -f $runs/ship_go_to_target.json ] || python experiments/target_reaching.py $runs/ship/go_to_target/cmu-v1/seed0 \
     --labels shipped --episodes 50 --json $runs/ship_go_to_target.json
-echo "next: from these figures write the cards hierarchy/pretrained/cards/cmu-v1.card.json (decoder, learned prior)," \
-    "distill/npmp/cards/cmu-v1.card.json (the multi-clip policy) and hierarchy/pretrained/cards/policies/cmu-v1/" \
-    "(the task policies), then: mocap-hierarchy decoder package $runs/distill/decoder.safetensors" \
-    "hierarchy/pretrained/cmu-v1.safetensors --card ... --scores $runs/eval_seen_noisy.json --prior" \
-    "$runs/distill/prior.safetensors --prior-out hierarchy/pretrained/priors/cmu-v1.safetensors;" \
-    "mocap-hierarchy distill package $runs/distill distill/npmp/pretrained/cmu-v1.safetensors --card ... --scores" \
-    "$runs/eval_seen_noisy.json; mocap-hierarchy transfer package $runs/ship/TASK/cmu-v1/seed0" \
-    "hierarchy/pretrained/policies/cmu-v1/TASK.safetensors --card ..."
+# Every figure the results page quotes, in one file (docs/results/release_cmu_v1.json once the release ships).
+python tools/release/release_results.py $runs --json $runs/release_results.json
+card=hierarchy/pretrained/cards
+echo "next: write the cards from these figures and read them (python tools/release/release_cards.py $runs)," \
+    "then package: mocap-hierarchy decoder package $runs/distill/decoder.safetensors" \
+    "hierarchy/pretrained/cmu-v1.safetensors --card $card/cmu-v1.card.json --scores $runs/eval_seen_noisy.json" \
+    "--prior $runs/distill/prior.safetensors --prior-out hierarchy/pretrained/priors/cmu-v1.safetensors;" \
+    "mocap-hierarchy distill package $runs/distill distill/npmp/pretrained/cmu-v1.safetensors" \
+    "--card distill/npmp/cards/cmu-v1.card.json --scores $runs/eval_seen_noisy.json;" \
+    "mocap-hierarchy transfer package $runs/ship/TASK/cmu-v1/seed0" \
+    "hierarchy/pretrained/policies/cmu-v1/TASK.safetensors --card $card/policies/cmu-v1/TASK.card.json (TASK:" \
+    "velocity_control, go_to_target; after the decoder, so that the policies name it)"

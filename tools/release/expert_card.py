@@ -30,7 +30,14 @@ RECIPE_NOTE = (
 )
 """The note of the synthetic-v3 experts' cards (the group's default `--note`)."""
 
-DEFAULT_NOTES = {"synthetic-v3": RECIPE_NOTE}
+REAL_NOTE = (
+    "One seed (0), trained with the synthetic release's recipe (`--profile fast-3m-wide`) for 1M-1.5M of its 3M "
+    "steps (docs/guides/real-release.md). It tracks one snippet of one person's CMU trial, converted onto the "
+    "walker: a skill for that motion, not a tracker of other clips (the multi-clip policy is that)."
+)
+"""The note of the cmu-locomotion-v1 experts' cards."""
+
+DEFAULT_NOTES = {"synthetic-v3": RECIPE_NOTE, "cmu-locomotion-v1": REAL_NOTE}
 """The note a group's cards carry when `--note` is not given (other groups: none)."""
 
 
@@ -146,7 +153,7 @@ def main() -> None:
     )
     parser.add_argument("--profile", default=PROFILE, help="the --profile it was trained with (default: %(default)s)")
     parser.add_argument(
-        "--note", default=None, help="the card's note (default: the group's own, synthetic-v3's recipe note; '' none)"
+        "--note", default=None, help="the card's note (default: the group's own, DEFAULT_NOTES; '' none)"
     )
     parser.add_argument("--out", type=Path, required=True, help="card JSON to write")
     args = parser.parse_args()
