@@ -93,7 +93,14 @@ class TaskEntry:
                 f"task {self.name!r} has no setting(s) {unknown}; valid settings: {', '.join(sorted(valid))}"
             )
         defaults = self.defaults() if callable(self.defaults) else self.defaults
-        return dataclasses.replace(config_type(), **{**defaults, **overrides})
+        base = config_type()
+        # one name where a tuple of them is set (`--set snippets=CMU_016_22-0-82`): a tuple of that one name,
+        # not of its characters
+        overrides = {
+            key: (value,) if isinstance(value, str) and isinstance(getattr(base, key), tuple) else value
+            for key, value in overrides.items()
+        }
+        return dataclasses.replace(base, **{**defaults, **overrides})
 
     def make(self, **overrides: Any) -> gym.Env:
         """Builds the environment with ``overrides`` applied to its config (and registers the Gymnasium ids)."""

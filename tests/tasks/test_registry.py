@@ -204,3 +204,9 @@ def test_an_unknown_setting_is_bad_input_for_the_command_line(tmp_path, capsys):
     assert main(["record", "--task", "tracking", "--policy", "random", "--out", out, "--set", "max_steps=3"]) == 2
     assert "task 'tracking' has no setting(s) ['max_steps']" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []  # nothing written
+
+
+def test_one_name_set_where_a_tuple_of_names_is_taken_is_a_tuple_of_that_name():
+    config = REGISTRY["tracking"].config(snippets="CMU_016_22-0-82", clips="cmu-locomotion-v1")
+    assert config.snippets == ("CMU_016_22-0-82",) and config.clips == "cmu-locomotion-v1"  # a str field stays one
+    assert REGISTRY["tracking"].config(snippets=("A-0-9", "B-0-9")).snippets == ("A-0-9", "B-0-9")

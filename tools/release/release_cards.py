@@ -85,6 +85,41 @@ def prior_steps(survival: dict[str, Any]) -> float:
     return statistics.fmean(run["samples"])
 
 
+TASK_SCORES = {
+    "velocity_control": (
+        ("control steps survived (mean, at most 1000)", "steps", 1),
+        ("speed slope", "slope", 3),
+        ("speed correlation", "correlation", 3),
+        ("heading cosine", "heading_cosine", 3),
+        ("reward per control step", "reward_per_step", 3),
+        ("standing still would earn", "still_reward_per_step", 3),
+    ),
+    "go_to_target": (
+        ("control steps survived (mean)", "steps", 1),
+        ("task return (mean)", "task_return", 2),
+        ("episodes with any reward", "rewarded_fraction", 2),
+        ("metres closed per episode", "metres_closed", 2),
+        ("approach speed (m/s)", "approach_speed", 2),
+        ("heading cosine", "heading_cosine", 2),
+    ),
+}
+"""Each task policy card's scores: (label, key of the evaluation's JSON, digits kept)."""
+
+TASK_EVALUATIONS = {
+    "velocity_control": (
+        "experiments/speed_tracking.py",
+        "--episodes 30 --steps 1000",
+        "the policy's own task (random commanded velocities below 1.5 m/s in any direction, a new command every "
+        "10 s), at most 1000 control steps (30 s) each",
+    ),
+    "go_to_target": (
+        "experiments/target_reaching.py",
+        "--episodes 50",
+        "the task (dm_control's reward alone, without the training's approach term), the task's 60 s limit",
+    ),
+}
+"""How each task policy is evaluated: the script, its flags, and what its episodes are."""
+
 TASK_TITLES = {"velocity_control": "Velocity control in any direction", "go_to_target": "Go-to-target"}
 """How a card's summary names each task."""
 
@@ -209,40 +244,15 @@ def task_policy_card(runs: Path, name: str, task: str) -> dict[str, Any]:
     final_return = task_return(run)
     evaluation = read_json(runs / f"ship_{task}.json")
     card = f"hierarchy/pretrained/cards/policies/{name}/{task}.card.json"
-    if task == "velocity_control":
-        measured = evaluation["policies"]["shipped"]
-        scores = {
-            "episodes": measured["episodes"],
-            "control steps survived (mean, at most 1000)": round(measured["steps"], 1),
-            "speed slope": round(measured["slope"], 3),
-            "speed correlation": round(measured["correlation"], 3),
-            "heading cosine": round(measured["heading_cosine"], 3),
-            "reward per control step": round(measured["reward_per_step"], 3),
-            "standing still would earn": round(measured["still_reward_per_step"], 3),
-        }
-        protocol = (
-            f"{measured['episodes']} deterministic episodes of the policy's own task (random commanded velocities "
-            "below 1.5 m/s in any direction, a new command every 10 s), at most 1000 control steps (30 s) each, "
-            "episodes from seed 1000 on: `python experiments/speed_tracking.py POLICY --episodes 30 --steps 1000`."
-        )
-        evaluate = f"python experiments/speed_tracking.py {run} --labels shipped --episodes 30 --steps 1000"
-    else:
-        measured = evaluation["shipped"]
-        scores = {
-            "episodes": measured["episodes"],
-            "control steps survived (mean)": round(measured["steps"], 1),
-            "task return (mean)": round(measured["task_return"], 2),
-            "episodes with any reward": round(measured["rewarded_fraction"], 2),
-            "metres closed per episode": round(measured["metres_closed"], 2),
-            "approach speed (m/s)": round(measured["approach_speed"], 2),
-            "heading cosine": round(measured["heading_cosine"], 2),
-        }
-        protocol = (
-            f"{measured['episodes']} deterministic episodes of the task (dm_control's reward alone, without the "
-            "training's approach term), episodes from seed 1000 on, the task's 60 s limit: `python "
-            "experiments/target_reaching.py POLICY --episodes 50`."
-        )
-        evaluate = f"python experiments/target_reaching.py {run} --labels shipped --episodes 50"
+    measured = evaluation.get("policies", evaluation)["shipped"]  # speed tracking nests its policies
+    scores = {"episodes": measured["episodes"]}
+    scores |= {label: round(measured[key], digits) for label, key, digits in TASK_SCORES[task]}
+    script, flags, episodes = TASK_EVALUATIONS[task]
+    protocol = (
+        f"{measured['episodes']} deterministic episodes of {episodes}, episodes from seed 1000 on: "
+        f"`python {script} POLICY {flags}`."
+    )
+    evaluate = f"python {script} {run} --labels shipped {flags}"
     layers = ppo["hidden_layers"]
     hidden = f"{len(layers)} x {layers[0]}" if len(set(layers)) == 1 else " x ".join(map(str, layers))
     return {
