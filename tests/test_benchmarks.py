@@ -37,3 +37,15 @@ def test_the_profile_gives_each_part_as_a_share_and_against_the_simulator():
     assert lines[1].split()[-4:] == ["%", "1.00", "x", "simulator"]  # the other 40 %, as much as the physics
     assert lines[2].split() == ["PPO", "update", "20.0", "%", "0.50", "x", "simulator"]
     assert lines[-1] == "all samples / simulator samples = 2.50x"
+
+
+@pytest.mark.parametrize("prior", ["learned", "fixed"])
+def test_the_multi_clip_loss_batched_over_steps_equals_the_step_by_step_loop(prior):
+    step = load_benchmark("distill_step")
+    model, windows = step.policy(prior), step.batch(4)
+    loss, gradients = step.loss_and_gradients(step.model_loss, model, windows)
+    baseline, baseline_gradients = step.loss_and_gradients(step.per_step_loss, model, windows)
+    assert float(loss) == pytest.approx(float(baseline), rel=1e-5) and len(gradients) == len(baseline_gradients)
+    assert step.largest_differences(model, windows)[1] < 1e-4
+    other_draws, _ = step.loss_and_gradients(step.model_loss, model, windows, seed=3)
+    assert float(other_draws) != float(loss)  # the comparison is of the same random draws, not of insensitive losses

@@ -193,25 +193,44 @@ class NpmpPolicy(nn.Module):
         config = self.config
         encoder_input, decoder_input = batch["encoder"], batch["decoder"]
         targets, weights = batch["actions"], batch["weights"]
-        size, steps = targets.shape[:2]
-        z = torch.randn(size, config.latent_size, device=targets.device)
-        nll = kl = squared = targets.new_zeros(())
-        for t in range(steps):
-            mean, std = self.encode(encoder_input[:, t], z)
-            prior_mean, prior_std = self.prior_distribution(decoder_input[:, t], z)
-            z_next = mean + std * torch.randn_like(std)
-            actions = self.decode(decoder_input[:, t], z_next)
-            error = ((actions - targets[:, t]) / config.action_std) ** 2
-            log_likelihood = -0.5 * error.sum(-1) - targets.shape[-1] * (
-                math.log(config.action_std) + 0.5 * math.log(2 * math.pi)
-            )
-            nll = nll - (weights[:, t] * log_likelihood).sum()
-            kl = kl + _gaussian_kl(mean, std, prior_mean, prior_std).sum()
-            squared = squared + ((actions.detach() - targets[:, t]) ** 2).mean(-1).sum()
-            z = z_next
-        count = size * steps
+        mean, std, z_previous, z = self.latent_chain(encoder_input)
+        # Only the encoder carries a step to the next (through z): the prior and the decoder see every step of
+        # every window at once, in one call each.
+        prior_mean, prior_std = self.prior_distribution(decoder_input, z_previous)
+        actions = self.decode(decoder_input, z)
+        error = ((actions - targets) / config.action_std) ** 2
+        log_likelihood = -0.5 * error.sum(-1) - targets.shape[-1] * (
+            math.log(config.action_std) + 0.5 * math.log(2 * math.pi)
+        )
+        nll = -(weights * log_likelihood).sum()
+        kl = _gaussian_kl(mean, std, prior_mean, prior_std).sum()
+        squared = ((actions.detach() - targets) ** 2).mean(-1).sum()
+        count = targets.shape[0] * targets.shape[1]
         loss = (nll + config.kl_weight * kl) / count
         return loss, {"nll": nll.detach() / count, "kl": kl.detach() / count, "mse": squared / count}
+
+    def latent_chain(
+        self, encoder_input: torch.Tensor
+    ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+        """The encoder along windows ``(B, T, De)``, step by step: each ``z_t`` is sampled and fed to the next.
+
+        ``z_0`` is drawn from ``N(0, I)``, then one ``N(0, I)`` draw per step reparameterises ``z_t``.
+
+        Returns:
+            ``(mean, std, z_previous, z)``, each ``(B, T, latent_size)``: the encoder's distribution of ``z_t``,
+            the ``z_{t-1}`` it was given and the ``z_t`` sampled from it.
+        """
+        size, steps = encoder_input.shape[:2]
+        z = torch.randn(size, self.config.latent_size, device=encoder_input.device)
+        means, stds, previous, sampled = [], [], [], []
+        for t in range(steps):
+            mean, std = self.encode(encoder_input[:, t], z)
+            previous.append(z)
+            z = mean + std * torch.randn_like(std)
+            means.append(mean)
+            stds.append(std)
+            sampled.append(z)
+        return torch.stack(means, 1), torch.stack(stds, 1), torch.stack(previous, 1), torch.stack(sampled, 1)
 
     @torch.no_grad()
     def act(
