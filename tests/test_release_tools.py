@@ -102,6 +102,22 @@ def test_a_real_card_names_its_clip_library_run_folder_and_card_file(tmp_path):
     assert "notes" not in expert_card.expert_card(run, "my-group")  # a group of one's own has no default note
 
 
+def test_a_continued_runs_card_gives_both_commands_and_both_runs_time(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the release scripts name runs relative to the repository's root
+    first = fake_run(Path("runs/experts-first/CMU_105_36-0-138"), [1200], clips="cmu-locomotion-v1", steps=10**6)
+    run = fake_run(Path("runs/experts/CMU_105_36-0-138"), [600], clips="cmu-locomotion-v1", steps=1_500_000)
+    config = json.loads((run / "config.json").read_text())
+    (run / "config.json").write_text(json.dumps({**config, "start_from": "runs/experts-first"}))
+    card = expert_card.expert_card(run, "cmu-locomotion-v1")
+    first_train, train, package = card["commands"]
+    assert first_train.startswith(f"mocap-hierarchy expert train --snippet {first.name} --clips cmu-locomotion-v1 ")
+    assert "--out runs/experts-first --profile fast-3m-wide --steps 1000000 " in first_train
+    assert train.endswith('--steps 1500000 --eval-episodes "50@0,500@2M" --start-from runs/experts-first')
+    assert package.startswith("mocap-hierarchy expert package runs/experts/CMU_105_36-0-138 ")
+    assert card["budgets"]["wall time"].startswith("30 minutes")  # 20 of the first run and 10 continued
+    assert expert_card.run_seconds(first) == 1200 and expert_card.started_from(first) is None
+
+
 def test_expert_status_reads_where_a_run_stands_and_its_final_evaluation(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(ROOT))  # run as `python -m tools.release.expert_status` from the root
     expert_status = load_script(ROOT / "tools" / "release" / "expert_status.py", "release_expert_status")

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import importlib
 import json
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
 from hierarchy.cards.model_card import check_card
-from tools.release import release_cards, release_results
+from tests.script_loading import ROOT
 
 
 def _write(path: Path, record: dict) -> None:
@@ -29,6 +31,15 @@ def _evaluation(fraction: float, success: float, error: float, length: float, sn
     }
     policy = {snippet: {"normalized_reward": 0.4} for snippet in snippets}
     return {"policy": policy, "over_snippets": over, "fraction": {"normalized_reward": fraction}, "experts": {}}
+
+
+@pytest.fixture
+def tools(monkeypatch) -> tuple[ModuleType, ModuleType]:
+    """The card writer and the results gatherer, imported as `python -m tools.release.NAME` from the root runs them."""
+    monkeypatch.syspath_prepend(str(ROOT))
+    return importlib.import_module("tools.release.release_cards"), importlib.import_module(
+        "tools.release.release_results"
+    )
 
 
 @pytest.fixture
@@ -65,7 +76,8 @@ def release(rollout_dir, tmp_path) -> tuple[Path, Path]:
     return runs, cards
 
 
-def test_the_cards_carry_the_runs_figures_and_pass_the_card_check(release, tmp_path, capsys):
+def test_the_cards_carry_the_runs_figures_and_pass_the_card_check(tools, release, tmp_path):
+    release_cards, _ = tools
     runs, cards = release
     assert release_cards.main([str(runs), "--expert-cards", str(cards), "--root", str(tmp_path / "out")]) == 0
     out = tmp_path / "out"
@@ -100,7 +112,8 @@ def test_the_cards_carry_the_runs_figures_and_pass_the_card_check(release, tmp_p
     assert "2 x 256, step size 3e-4" in task["budgets"]["steps"]
 
 
-def test_a_missing_measurement_names_the_script_that_writes_it(release, tmp_path):
+def test_a_missing_measurement_names_the_script_that_writes_it(tools, release, tmp_path):
+    release_cards, _ = tools
     runs, cards = release
     (runs / "prior_survival.json").unlink()
     with pytest.raises(FileNotFoundError, match=r"prior_survival.json is missing: run tools/release/cmu_v1_decoder.sh"):
@@ -116,7 +129,8 @@ def _transfer_run(folder: Path, returns: list[float]) -> None:
     (folder / "progress.csv").write_text("\n".join(rows) + "\n")
 
 
-def test_the_results_file_averages_each_decoders_seeds_and_judges_the_shipped_policy(release, tmp_path):
+def test_the_results_file_averages_each_decoders_seeds_and_judges_the_shipped_policy(tools, release, tmp_path):
+    _, release_results = tools
     runs, _ = release
     velocity: dict[str, dict] = {}
     target: dict[str, object] = {"seeds": [1000, 1050]}

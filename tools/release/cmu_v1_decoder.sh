@@ -129,9 +129,9 @@ velocity_runs=$(ls -d $runs/transfer/velocity_control/*/seed*)
 [ -f $runs/ship_go_to_target.json ] || python experiments/target_reaching.py $runs/ship/go_to_target/cmu-v1/seed0 \
     --labels shipped --episodes 50 --json $runs/ship_go_to_target.json
 # Every figure the results page quotes, in one file (docs/results/release_cmu_v1.json once the release ships).
-python tools/release/release_results.py $runs --json $runs/release_results.json
+python -m tools.release.release_results $runs --json $runs/release_results.json
 card=hierarchy/pretrained/cards
-echo "next: write the cards from these figures and read them (python tools/release/release_cards.py $runs)," \
+echo "next: write the cards from these figures and read them (python -m tools.release.release_cards $runs)," \
     "then package: mocap-hierarchy decoder package $runs/distill/decoder.safetensors" \
     "hierarchy/pretrained/cmu-v1.safetensors --card $card/cmu-v1.card.json --scores $runs/eval_seen_noisy.json" \
     "--prior $runs/distill/prior.safetensors --prior-out hierarchy/pretrained/priors/cmu-v1.safetensors;" \

@@ -53,6 +53,32 @@ def training_seconds(progress: Path) -> float:
     return total + last
 
 
+def started_from(run: Path) -> Path | None:
+    """The run a run started from (`--start-from`, as its `config.json` records it), or None."""
+    config = run / "config.json"
+    start = json.loads(config.read_text()).get("start_from") if config.is_file() else None
+    return Path(start) / run.name if start else None
+
+
+def run_seconds(run: Path) -> float:
+    """A run's training time, with that of the run it started from (`--start-from`) and so on back."""
+    progress = run / "progress.csv"
+    seconds = training_seconds(progress) if progress.is_file() else 0.0
+    first = started_from(run)
+    return seconds + (run_seconds(first) if first is not None and first.is_dir() else 0.0)
+
+
+def train_command(run: Path, settings: dict, clips_flag: str, profile: str, start: Path | None = None) -> str:
+    """The `expert train` command of a run trained into `run.parent` (from the runs in `start`, if given)."""
+    steps = settings["total_steps"]
+    steps_flag = f"--steps {steps} " if steps != PROFILE_STEPS.get(profile) else ""
+    start_flag = f" --start-from {start.as_posix()}" if start is not None else ""
+    return (
+        f"mocap-hierarchy expert train --snippet {run.name} {clips_flag}--out {run.parent.as_posix()} "
+        f'--profile {profile} {steps_flag}--eval-episodes "{settings["eval_episodes"]}"{start_flag}'
+    )
+
+
 def run_settings(run: Path, done: dict) -> dict:
     """The settings the run was trained with: `config.json`, else the copy in `done.json`."""
     if (run / "config.json").is_file():
@@ -100,15 +126,16 @@ def expert_card(
     clips = clips or recorded_clips(run)
     final, kept = done["final_evaluation"], done["best"]
     tracking = final.get("tracking", {})
-    minutes = training_seconds(run / "progress.csv") / 60
+    minutes = run_seconds(run) / 60
     name = f"{group}/{snippet}"
     card = card or Path("distill/experts/cards") / group / f"{snippet}.card.json"
     hidden = settings.get("ppo", {}).get("hidden_layers", [512, 512])
     network = f"{len(hidden)} x {hidden[0]}" if len(set(hidden)) == 1 else " x ".join(map(str, hidden))
     actions = "residual actions" if settings.get("residual_actions", True) else "absolute actions"
-    steps = settings["total_steps"]
-    steps_flag = f"--steps {steps} " if steps != PROFILE_STEPS.get(profile) else ""
     clips_flag = f"--clips {clips} " if clips else ""
+    first = started_from(run)  # a run continued from another's kept expert: that run's command comes first
+    trained = [train_command(first, run_settings(first, {}), clips_flag, profile)] if first is not None else []
+    trained.append(train_command(run, settings, clips_flag, profile, first.parent if first is not None else None))
     scores = {
         "protocol": (
             f"{final['episodes']} episodes from random frames (the last 30 excluded) with action noise 0.1, "
@@ -135,8 +162,7 @@ def expert_card(
         },
         "scores": scores,
         "commands": [
-            f"mocap-hierarchy expert train --snippet {snippet} {clips_flag}--out {run.parent.as_posix()} "
-            f'--profile {profile} {steps_flag}--eval-episodes "{settings["eval_episodes"]}"',
+            *trained,
             f"mocap-hierarchy expert package {run.as_posix()} distill/experts/pretrained/{group} "
             f"{clips_flag}--card {card.as_posix()}",
         ],

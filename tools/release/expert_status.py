@@ -12,7 +12,7 @@ import argparse
 import json
 from pathlib import Path
 
-from tools.release.expert_card import training_seconds
+from tools.release.expert_card import run_seconds
 
 
 def run_status(run: Path) -> dict:
@@ -22,11 +22,10 @@ def run_status(run: Path) -> dict:
     done = json.loads((run / "done.json").read_text()) if (run / "done.json").is_file() else None
     last = evaluations[-1] if evaluations else {}
     best = max(evaluations, key=lambda e: e["normalized_length"], default={})
-    progress = run / "progress.csv"
     row = {
         "snippet": run.name,
         "steps": last.get("steps", 0),
-        "minutes": round(training_seconds(progress) / 60, 1) if progress.is_file() else 0.0,
+        "minutes": round(run_seconds(run) / 60, 1),  # with the run it started from, if any
         "last_length": last.get("normalized_length"),
         "last_reward": last.get("normalized_reward"),
         "last_success": last.get("tracking", {}).get("success"),

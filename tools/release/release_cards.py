@@ -9,7 +9,7 @@ on the cards comes from those files; the sentences around them are this script's
 read (and amend) before packaging. The experts' and multi-clip policy's scores are not written here: `decoder
 package --scores` and `distill package --scores` add them from `eval_seen_noisy.json`.
 
-    python tools/release/release_cards.py runs/release-cmu-v1 --decoder cmu-v1 --group cmu-locomotion-v1
+    python -m tools.release.release_cards runs/release-cmu-v1 --decoder cmu-v1 --group cmu-locomotion-v1
 
 writes `hierarchy/pretrained/cards/NAME.card.json` (the decoder and its prior), `distill/npmp/cards/NAME.card.json`
 (the multi-clip policy) and `hierarchy/pretrained/cards/policies/NAME/TASK.card.json` (each shipped task policy

@@ -8,7 +8,7 @@ evaluations `TASK_300k.json`, averaged over seeds per decoder) and the shipped t
 results page quotes the file it writes (`<!-- value: docs/results/release_cmu_v1.json KEY -->`), and
 `tools.quoted_values` keeps the quotes equal to it.
 
-    python tools/release/release_results.py runs/release-cmu-v1 --json docs/results/release_cmu_v1.json
+    python -m tools.release.release_results runs/release-cmu-v1 --json docs/results/release_cmu_v1.json
 """
 
 from __future__ import annotations
