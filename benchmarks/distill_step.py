@@ -25,7 +25,7 @@ import time
 import torch
 
 from distill.npmp.config import NpmpConfig
-from distill.npmp.model import NpmpPolicy, NpmpSpec, _gaussian_kl
+from distill.npmp.model import NpmpPolicy, NpmpSpec
 
 ENCODER_SIZE, DECODER_SIZE, WINDOW = 1300, 205, 30
 """Flat encoder and decoder inputs of the walker's observables (reference look-ahead included), window length."""
@@ -56,6 +56,12 @@ def batch(size: int, seed: int = 1) -> dict[str, torch.Tensor]:
     }
 
 
+def gaussian_kl(mean: torch.Tensor, std: torch.Tensor, prior_mean, prior_std) -> torch.Tensor:
+    """``KL(N(mean, std^2) || N(prior_mean, prior_std^2))`` summed over the last axis (the paper's KL term)."""
+    variance_ratio = (std / prior_std) ** 2
+    return 0.5 * (variance_ratio + ((mean - prior_mean) / prior_std) ** 2 - 1.0 - torch.log(variance_ratio)).sum(-1)
+
+
 def per_step_loss(model: NpmpPolicy, windows: dict[str, torch.Tensor]) -> torch.Tensor:
     """The objective with encoder, prior and decoder called once per step (the baseline; the same loss)."""
     config = model.config
@@ -71,7 +77,7 @@ def per_step_loss(model: NpmpPolicy, windows: dict[str, torch.Tensor]) -> torch.
         error = ((actions - targets[:, t]) / config.action_std) ** 2
         constant = targets.shape[-1] * (math.log(config.action_std) + 0.5 * math.log(2 * math.pi))
         nll = nll - (weights[:, t] * (-0.5 * error.sum(-1) - constant)).sum()
-        kl = kl + _gaussian_kl(mean, std, prior_mean, prior_std).sum()
+        kl = kl + gaussian_kl(mean, std, prior_mean, prior_std).sum()
     return (nll + config.kl_weight * kl) / (size * steps)
 
 
