@@ -132,7 +132,7 @@ def _range(low: float, high: float, digits: int = 3) -> str:
     return f"{low:.{digits}f}" if round(low, digits) == round(high, digits) else f"{low:.{digits}f}-{high:.{digits}f}"
 
 
-def shared_parts(runs: Path, name: str, group: str, experts: dict[str, Any]) -> dict[str, Any]:
+def shared_parts(runs: Path, group: str, experts: dict[str, Any]) -> dict[str, Any]:
     """What the decoder's and the multi-clip policy's cards share: data, budgets, notes."""
     distilled = read_json(runs / "distill" / "distill.json")
     npmp, trainer = distilled["npmp"], distilled["trainer"]
@@ -178,7 +178,7 @@ def shared_parts(runs: Path, name: str, group: str, experts: dict[str, Any]) -> 
 
 def decoder_card(runs: Path, name: str, group: str, experts: dict[str, Any]) -> dict[str, Any]:
     """The card of the decoder and its learned prior (`decoder package ... --prior ... --card`)."""
-    parts = shared_parts(runs, name, group, experts)
+    parts = shared_parts(runs, group, experts)
     survival = prior_steps(read_json(runs / "prior_survival.json"))
     card = f"hierarchy/pretrained/cards/{name}.card.json"
     return {
@@ -203,7 +203,7 @@ def decoder_card(runs: Path, name: str, group: str, experts: dict[str, Any]) -> 
 
 def multi_clip_card(runs: Path, name: str, group: str, experts: dict[str, Any]) -> dict[str, Any]:
     """The card of the whole multi-clip policy, encoder and decoder (`distill package ... --card`)."""
-    parts = shared_parts(runs, name, group, experts)
+    parts = shared_parts(runs, group, experts)
     card = f"distill/npmp/cards/{name}.card.json"
     return {
         "name": name,
