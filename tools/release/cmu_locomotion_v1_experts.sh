@@ -27,7 +27,7 @@ train() {  # snippet [extra flags]
 }
 
 continued() {  # snippet steps: a finished run continues from its kept expert (its first run moves to experts-first/)
-    local snippet=$1 steps=$2 first=$out/../experts-first
+    local snippet=$1 steps=$2 first=runs/release-cmu-v1/experts-first
     if [ ! -d "$first/$snippet" ]; then
         mkdir -p "$first"
         mv "$out/$snippet" "$first/"
@@ -38,17 +38,21 @@ continued() {  # snippet steps: a finished run continues from its kept expert (i
 lane_a() {  # walks, veers and turns, walking and running
     for snippet in CMU_016_22-0-82 CMU_016_27-0-64 CMU_016_23-0-79 CMU_016_51-0-46 CMU_016_48-0-32 \
         CMU_002_01-0-92 CMU_016_28-0-72 CMU_016_30-0-70 CMU_105_36-0-138 CMU_016_36-0-49 CMU_105_62-0-192 \
-        CMU_016_25-0-75 CMU_105_53-0-150; do
+        CMU_016_25-0-75; do
         train $snippet
     done
     # The walk of 4.6 s kept 0.899 of its snippet at 1M over the 1000 episodes (0.94 in training's last
     # evaluations of 50): it continues from its kept expert to 1.5M.
     continued CMU_105_36-0-138 1500000
+    # The curved walk of 6.4 s stalled at 0.66-0.74 of its snippet from 400k to 900k: it continues to the profile's
+    # full 3M, through its second stretch (less noise, larger updates from 2M).
+    continued CMU_105_62-0-192 3000000
 }
 
 lane_b() {  # runs, jumps, jump-turns, turns on the spot
     for snippet in CMU_016_55-0-47 CMU_016_29-0-75 CMU_013_11-0-112 CMU_105_46-0-86 CMU_105_56-0-135 \
-        CMU_016_53-0-36 CMU_016_49-0-32 CMU_009_11-0-42 CMU_105_39-0-120 CMU_105_48-0-118 CMU_016_02-0-126; do
+        CMU_016_53-0-36 CMU_016_49-0-32 CMU_009_11-0-42 CMU_105_39-0-120 CMU_105_48-0-118 CMU_016_02-0-126 \
+        CMU_105_53-0-150; do
         case $snippet in
             CMU_105_39-0-120 | CMU_016_02-0-126) train $snippet --steps "${JUMP_BUDGET:-2000000}" ;;  # forward jumps
             *) train $snippet ;;
