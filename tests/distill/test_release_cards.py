@@ -64,7 +64,8 @@ def release(rollout_dir, tmp_path) -> tuple[Path, Path]:
     _write(
         ship / "transfer.json", {"config": {"total_steps": 10**6, "n_envs": 8, "steps_per_update": 4096, "ppo": ppo}}
     )
-    rows = ["time/time_elapsed,rollout/ep_rew_mean", "600,10.5", "1200,20.25", "300,30.0", "900,", ""]  # resumed once
+    rows = ["time/total_timesteps,time/time_elapsed,rollout/ep_rew_mean"]
+    rows += ["4096,600,10.5", "8192,1200,20.25", "12288,300,30.0", "16384,900,", ""]  # resumed once
     (ship / "progress.csv").write_text("\n".join(rows))
     measured = {"episodes": 30, "steps": 512.33, "slope": 0.61234, "correlation": 0.9, "heading_cosine": 0.8}
     still = {"reward_per_step": 0.7, "still_reward_per_step": 0.5}
@@ -127,6 +128,7 @@ def _transfer_run(folder: Path, returns: list[float]) -> None:
     rows += [f"{(i + 1) * 4096},{r + 100},{r}" for i, r in enumerate(returns)]  # the training's own term on top
     folder.mkdir(parents=True)
     (folder / "progress.csv").write_text("\n".join(rows) + "\n")
+    (folder / "transfer.json").write_text(json.dumps({"task": folder.parts[-3], "config": {}}))
 
 
 def test_the_results_file_averages_each_decoders_seeds_and_judges_the_shipped_policy(tools, release, tmp_path):

@@ -19,7 +19,6 @@ whose run is there); `--root DIR` writes the same paths under DIR instead (a reh
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import statistics
 from pathlib import Path
@@ -220,20 +219,19 @@ def multi_clip_card(runs: Path, name: str, group: str, experts: dict[str, Any]) 
     }
 
 
-def progress_rows(run: Path) -> list[dict[str, str]]:
-    """The rows of a training run's `progress.csv`."""
-    with (run / "progress.csv").open() as handle:
-        return list(csv.DictReader(handle))
-
-
 def task_return(run: Path) -> float:
-    """A transfer run's last mean training-episode return: the task's own reward where it logged it."""
-    rows = progress_rows(run)
-    for key in ("rollout/task_return_mean", "rollout/ep_rew_mean"):
-        values = [float(row[key]) for row in rows if row.get(key)]
-        if values:
-            return values[-1]
-    raise ValueError(f"{run}/progress.csv logs no training return yet")
+    """A transfer run's last mean training-episode return, as the report reads it (the task's own where logged)."""
+    from mocap_hierarchy.report.sources import find_run_contents
+
+    runs = find_run_contents(run).transfer
+    if not runs:
+        raise ValueError(f"{run} holds no transfer run with a logged training return yet")
+    return runs[0].returns[-1]
+
+
+def shipped_figures(evaluation: dict[str, Any], label: str = "shipped") -> dict[str, Any]:
+    """One policy's figures in an evaluation's JSON (speed tracking nests its policies; target reaching does not)."""
+    return evaluation.get("policies", evaluation)[label]
 
 
 def task_policy_card(runs: Path, name: str, task: str) -> dict[str, Any]:
@@ -244,7 +242,7 @@ def task_policy_card(runs: Path, name: str, task: str) -> dict[str, Any]:
     final_return = task_return(run)
     evaluation = read_json(runs / f"ship_{task}.json")
     card = f"hierarchy/pretrained/cards/policies/{name}/{task}.card.json"
-    measured = evaluation.get("policies", evaluation)["shipped"]  # speed tracking nests its policies
+    measured = shipped_figures(evaluation)
     scores = {"episodes": measured["episodes"]}
     scores |= {label: round(measured[key], digits) for label, key, digits in TASK_SCORES[task]}
     script, flags, episodes = TASK_EVALUATIONS[task]
