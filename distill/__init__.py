@@ -26,7 +26,8 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     from distill.gpt.model import MotionGpt, load_gpt
     from distill.gpt.training import train_gpt
     from distill.npmp.config import NpmpConfig
-    from distill.npmp.model import NpmpPolicy, load_policy
+    from distill.npmp.model import NpmpPolicy
+    from distill.npmp.policy_file import load_policy
     from distill.npmp.training import train_npmp
     from distill.trainer import TrainingOutcome
     from distill.trainer_config import TrainerConfig
@@ -70,7 +71,7 @@ __getattr__, __dir__ = lazy_exports(
         "complete_motions": "distill.gpt.completion",
         "load_expert": "distill.experts.loading",
         "load_gpt": "distill.gpt.model",
-        "load_policy": "distill.npmp.model",
+        "load_policy": "distill.npmp.policy_file",
         "rollout_experts": "distill.dataset.writer",
         "train_expert": "distill.experts.training",
         "train_gpt": "distill.gpt.training",

@@ -31,7 +31,7 @@ from distill.experts.evaluation import EvaluationConfig, evaluate_policy, evalua
 from distill.experts.files import find_experts
 from distill.experts.loading import load_expert
 from distill.npmp.evaluation import PolicyEvaluationConfig, evaluate_multi_clip
-from distill.npmp.model import load_policy
+from distill.npmp.policy_file import load_policy
 from foundation.atomic import write_json
 from tasks.tracking.env import ClipTrackingEnv, TrackingConfig, reference_action
 from tasks.tracking.metrics import TRACKING_METRICS, aggregate, episode_means, metrics_table, record_episode

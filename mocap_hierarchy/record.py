@@ -156,7 +156,8 @@ def _recorded_clips(expert: str | os.PathLike) -> dict[str, str]:
 
 
 def _multi_clip(task: str, path: Path, overrides: dict[str, Any]) -> Rollout:
-    from distill.npmp.model import MultiClipPrompt, load_policy
+    from distill.npmp.model import MultiClipPrompt
+    from distill.npmp.policy_file import load_policy
 
     _require_task(task, ("tracking",), "the multi-clip policy")
     prompt = MultiClipPrompt(load_policy(path), rows=1)

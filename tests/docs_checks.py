@@ -192,3 +192,26 @@ def check_quoted_values(files: Iterable[Path]) -> list[str]:
         for path in files
         for problem in mismatches(path.read_text(), lambda source: json_source(ROOT / source))
     ]
+
+
+def table_cells(row: str) -> int:
+    """How many cells a pipe-table row holds (an escaped ``\\|`` is text; a cell may hold a quoted-figure span)."""
+    return len(re.split(r"(?<!\\)\|", row.strip().strip("|")))
+
+
+def check_table_widths(files: Iterable[Path]) -> list[str]:
+    """Every row of a Markdown pipe table has as many cells as its header: a row pasted under another table shows
+    its extra cells nowhere, and one short of cells leaves its figures in the wrong columns."""
+    problems = []
+    for path in files:
+        lines = FENCE.sub(lambda block: "\n" * block.group(0).count("\n"), path.read_text()).splitlines()
+        header = None
+        for number, line in enumerate(lines, 1):
+            if not line.startswith("|"):
+                header = None
+            elif header is None:
+                header = table_cells(line)
+            elif table_cells(line) != header:
+                where, shown = f"{path.relative_to(ROOT)}:{number}", line[:60] + ("..." if len(line) > 60 else "")
+                problems.append(f"{where}: {table_cells(line)} cells under a {header}-column header: {shown}")
+    return problems

@@ -646,7 +646,7 @@ def _judge_multi_clip_policy(policy: Any) -> str:
 
 def multi_clip_policy_target() -> Target:
     """``load_policy`` (``record``, ``decoder fit-prior``) on a multi-clip policy file."""
-    from distill.npmp.model import PolicyFileError, load_policy
+    from distill.npmp.policy_file import PolicyFileError, load_policy
 
     return Target(
         "multi-clip policy (`load_policy`)",

@@ -89,6 +89,10 @@ def test_quoted_figures_are_read_from_the_json_their_commands_wrote(pages):
     assert docs_checks.check_quoted_values(pages) == []
 
 
+def test_every_table_row_has_its_header_s_cells(pages):
+    assert docs_checks.check_table_widths(pages) == []
+
+
 def test_user_facing_text_calls_the_paper_the_paper(pages):
     """'seed' means a random seed only; no page speaks of sessions or issues (words of the development log)."""
     paper = r"\bthe seed's|\bthe seed[:;)]|\bseed (?:paper|Table|[AB]\.\d)"
@@ -173,6 +177,14 @@ def test_a_quoted_figure_that_differs_from_its_json_is_found(tmp_path, monkeypat
     problems = docs_checks.check_quoted_values([page])
     assert len(problems) == 3 and "shows 2.1" in problems[0] and "cannot be read" in problems[1]
     assert "shows follows, the file holds follows the command" in problems[2]
+
+
+def test_a_row_under_a_table_of_other_width_is_found(tmp_path, monkeypatch):
+    monkeypatch.setattr(docs_checks, "ROOT", tmp_path)
+    table = "| a | b |\n|---|---|\n| `x \\| y` | 2 |\n"
+    page = planted(tmp_path, f"# P\n\n{table}| 1 | 2 | 3 |\n\n```\n| 1 |\n```\n\n{table}")
+    problems = docs_checks.check_table_widths([page])
+    assert len(problems) == 1 and ":6: 3 cells under a 2-column header" in problems[0]
 
 
 def test_slugs_follow_github_and_repeat_with_suffixes():

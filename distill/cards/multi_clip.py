@@ -19,7 +19,8 @@ from pathlib import Path
 from typing import Any
 
 import distill.npmp.shipped as shipped
-from distill.npmp.model import NORMALISERS, POLICY_FORMAT, NpmpPolicy, load_policy
+from distill.npmp.model import NORMALISERS, POLICY_FORMAT, NpmpPolicy
+from distill.npmp.policy_file import load_policy
 from foundation.interfaces import flat_observation_port, vector_port
 from hierarchy.cards.decoder import scores_markdown
 from hierarchy.cards.markdown import (

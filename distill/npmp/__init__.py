@@ -10,8 +10,9 @@ from foundation.lazy import lazy_exports
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
     from distill.npmp.config import NpmpConfig, OnlineDistillConfig, PolicyEvaluationConfig, default_sampler
     from distill.npmp.evaluation import evaluate_multi_clip, fraction_of_experts
-    from distill.npmp.model import MultiClipPrompt, NpmpPolicy, NpmpSpec, load_policy
+    from distill.npmp.model import MultiClipPrompt, NpmpPolicy, NpmpSpec
     from distill.npmp.packaging import PackagedPolicy, package_policy
+    from distill.npmp.policy_file import load_policy
     from distill.npmp.shipped import shipped_policies
     from distill.npmp.training import DistillResult, train_npmp
 
@@ -47,7 +48,7 @@ __getattr__, __dir__ = lazy_exports(
         "default_sampler": "distill.npmp.config",
         "evaluate_multi_clip": "distill.npmp.evaluation",
         "fraction_of_experts": "distill.npmp.evaluation",
-        "load_policy": "distill.npmp.model",
+        "load_policy": "distill.npmp.policy_file",
         "package_policy": "distill.npmp.packaging",
         "shipped_policies": "distill.npmp.shipped",
         "train_npmp": "distill.npmp.training",

@@ -24,7 +24,8 @@ import numpy as np
 import torch
 
 from distill.npmp.config import PACKAGING_OBSERVATIONS, PACKAGING_TOLERANCE
-from distill.npmp.model import NpmpPolicy, load_policy
+from distill.npmp.model import NpmpPolicy
+from distill.npmp.policy_file import load_policy
 from foundation.atomic import atomic_path
 from hierarchy.cards.model_card import CARD_KEY, check_card
 

@@ -32,7 +32,8 @@ from distill.npmp.config import (  # defined there (light), used and re-exported
     OnlineDistillConfig,
     default_sampler,
 )
-from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec, start_from
+from distill.npmp.model import NpmpConfig, NpmpPolicy, NpmpSpec
+from distill.npmp.policy_file import start_from
 from distill.supervised.processes import writer_lock
 from distill.trainer import (
     DatasetTraining,

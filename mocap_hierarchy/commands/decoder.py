@@ -145,7 +145,7 @@ def _card(args: argparse.Namespace) -> None:
 
 
 def _fit_prior(args: argparse.Namespace) -> None:
-    from distill.npmp.model import load_policy
+    from distill.npmp.policy_file import load_policy
     from distill.npmp.prior import fit_latent_prior
 
     snippets = args.snippets

@@ -178,7 +178,7 @@ def _card(args: argparse.Namespace) -> None:
 def _distill_eval(args: argparse.Namespace) -> None:
     from distill.dataset.reader import RolloutDataset
     from distill.npmp.evaluation import evaluate_multi_clip, fraction_of_experts
-    from distill.npmp.model import load_policy
+    from distill.npmp.policy_file import load_policy
     from tasks.tracking.metrics import TABLE_COLUMNS, TERMINATION_NAMES, aggregate, metrics_table
 
     config = dataclass_from_args(PolicyEvaluationConfig, args)

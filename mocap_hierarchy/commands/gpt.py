@@ -174,7 +174,8 @@ def _prompts(args: argparse.Namespace) -> tuple[dict, str | None]:
     """Snippet -> prompt factory, from ``--experts`` or ``--policy``, and the clips: ``--clips``, else the experts'."""
     from distill.experts.clip_library import experts_clips
     from distill.gpt.completion import ExpertPrompt
-    from distill.npmp.model import MultiClipPrompt, load_policy
+    from distill.npmp.model import MultiClipPrompt
+    from distill.npmp.policy_file import load_policy
 
     if args.policy is not None:
         from distill.npmp.training import POLICY_FILE

@@ -96,7 +96,8 @@ def dataset_stage(experts: Path, out: Path, library: str, config: QuickstartConf
 def distill_stage(data: Path, out: Path, expert_rows: list[dict], library: str, config: QuickstartConfig) -> dict:
     """Distils, then evaluates like the expert rows (deterministic, from the snippet start)."""
     from distill.npmp.evaluation import PolicyEvaluationConfig, evaluate_multi_clip, fraction_of_experts
-    from distill.npmp.model import NpmpConfig, load_policy
+    from distill.npmp.model import NpmpConfig
+    from distill.npmp.policy_file import load_policy
     from distill.npmp.training import default_sampler, train_npmp
     from distill.trainer import TrainerConfig
 

@@ -14,8 +14,9 @@ from safetensors import safe_open
 
 import distill.npmp.shipped as shipped
 from distill.npmp.config import PACKAGING_TOLERANCE
-from distill.npmp.model import NORMALISERS, NpmpConfig, load_policy
+from distill.npmp.model import NORMALISERS, NpmpConfig
 from distill.npmp.packaging import PolicyPackagingError, package_policy
+from distill.npmp.policy_file import load_policy
 from distill.npmp.training import default_sampler, train_npmp
 from distill.trainer import TrainerConfig
 from hierarchy.cards.markdown import SECTIONS

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 import torch
 
-from distill.npmp.model import NpmpConfig, _gaussian_kl, load_policy
+from distill.npmp.model import NpmpConfig, _gaussian_kl
+from distill.npmp.policy_file import load_policy
 from distill.npmp.training import default_sampler, train_npmp
 from distill.trainer import CheckpointMismatchError, TrainerConfig
 from hierarchy import load_decoder

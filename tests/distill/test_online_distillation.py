@@ -12,7 +12,8 @@ import pytest
 from distill import trainer as trainer_module
 from distill.dataset.online_buffer import OnlineBuffer, Segment
 from distill.npmp.config import OnlineDistillConfig
-from distill.npmp.model import NpmpConfig, load_policy
+from distill.npmp.model import NpmpConfig
+from distill.npmp.policy_file import load_policy
 from distill.npmp.teachers import load_teachers, teacher_gap
 from distill.npmp.training import default_sampler, train_npmp
 from distill.trainer import TrainerConfig
