@@ -46,7 +46,11 @@ class ShippedArtifacts:
     def names(self) -> dict[str, Path]:
         """``{name: path}`` of every shipped artifact of this kind, sorted by name."""
         found = sorted(self.folder.glob(self.pattern))
-        paths = [path for path in found if path.is_dir() == (not self.suffix)]
+        # a hidden entry is no artifact: an atomic write's staging (``.NAME.*.tmp``) or a file manager's
+        visible = [
+            path for path in found if not any(part.startswith(".") for part in path.relative_to(self.folder).parts)
+        ]
+        paths = [path for path in visible if path.is_dir() == (not self.suffix)]
         return {path.relative_to(self.folder).as_posix().removesuffix(self.suffix): path for path in paths}
 
     def resolve(self, source: str | os.PathLike) -> Path:

@@ -219,5 +219,7 @@ def test_shipped_artifacts_are_named_by_their_path_and_an_existing_path_wins(tmp
     (tmp_path / "v3" / "walk").write_text("the user's own file, called like a shipped name")
     assert policies.resolve("v3/walk") == Path("v3/walk")  # a user's file is never shadowed
     folders = ShippedArtifacts(folder, "expert", pattern="*/*", suffix="")
-    assert list(folders.names()) == ["v3/expert"]
+    (folder / "v3" / ".expert.vm-1.tmp").mkdir()  # a packaging under way stages its folder hidden beside
+    (folder / "v3" / ".hidden.safetensors").write_text("policy")
+    assert list(folders.names()) == ["v3/expert"] and list(policies.names()) == ["v3/walk"]
     assert ShippedArtifacts(tmp_path / "none", "decoder").hint() == "no decoder is shipped with this installation"

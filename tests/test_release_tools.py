@@ -137,6 +137,16 @@ def test_expert_status_reads_where_a_run_stands_and_its_final_evaluation(tmp_pat
     waiting.mkdir()
     not_started = expert_status.run_status(waiting)
     assert not_started["steps"] == 0 and not not_started["finished"] and not_started["last_length"] is None
+    first = tmp_path / "first" / finished.name  # the finished run continues (`--start-from`) under way
+    first.parent.mkdir()
+    finished.rename(first)
+    continued = fake_run(finished, [60], steps=200_000)
+    (continued / "done.json").unlink()
+    config = json.loads((continued / "config.json").read_text())
+    (continued / "config.json").write_text(json.dumps({**config, "start_from": str(first.parent)}))
+    row = expert_status.run_status(continued)
+    assert not row["finished"] and row["final"]["success"] == 0.93412 and row["final_of"] == first.as_posix()
+    assert "final" not in expert_status.run_status(waiting)
 
 
 FLAG_PATTERN = re.compile(r"\$\{(\w+)(?::-[^{}]*)?\}|\$(\w+)")

@@ -130,13 +130,4 @@ velocity_runs=$(ls -d $runs/transfer/velocity_control/*/seed*)
     --labels shipped --episodes 50 --json $runs/ship_go_to_target.json
 # Every figure the results page quotes, in one file (docs/results/release_cmu_v1.json once the release ships).
 python -m tools.release.release_results $runs --json $runs/release_results.json
-card=hierarchy/pretrained/cards
-echo "next: write the cards from these figures and read them (python -m tools.release.release_cards $runs)," \
-    "then package: mocap-hierarchy decoder package $runs/distill/decoder.safetensors" \
-    "hierarchy/pretrained/cmu-v1.safetensors --card $card/cmu-v1.card.json --scores $runs/eval_seen_noisy.json" \
-    "--prior $runs/distill/prior.safetensors --prior-out hierarchy/pretrained/priors/cmu-v1.safetensors;" \
-    "mocap-hierarchy distill package $runs/distill distill/npmp/pretrained/cmu-v1.safetensors" \
-    "--card distill/npmp/cards/cmu-v1.card.json --scores $runs/eval_seen_noisy.json;" \
-    "mocap-hierarchy transfer package $runs/ship/TASK/cmu-v1/seed0" \
-    "hierarchy/pretrained/policies/cmu-v1/TASK.safetensors --card $card/policies/cmu-v1/TASK.card.json (TASK:" \
-    "velocity_control, go_to_target; after the decoder, so that the policies name it)"
+echo "next: ship it with tools/release/cmu_v1_ship.sh (cards from these files, then packaging), and read the cards"

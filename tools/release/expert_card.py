@@ -31,8 +31,9 @@ RECIPE_NOTE = (
 """The note of the synthetic-v3 experts' cards (the group's default `--note`)."""
 
 REAL_NOTE = (
-    "One seed (0), trained with the synthetic release's recipe (`--profile fast-3m-wide`) for 1M-1.5M of its 3M "
-    "steps (docs/guides/real-release.md). It tracks one snippet of one person's CMU trial, converted onto the "
+    "One seed (0), trained with the synthetic release's recipe (`--profile fast-3m-wide`) on a budget of 1M-3M "
+    "steps by the kind and length of its motion (docs/guides/real-release.md). It tracks one snippet of one "
+    "person's CMU trial, converted onto the "
     "walker: a skill for that motion, not a tracker of other clips (the multi-clip policy is that)."
 )
 """The note of the cmu-locomotion-v1 experts' cards."""

@@ -1,5 +1,8 @@
 """Where every expert run of a release stands: steps, last evaluation, best, finished or not (developers).
 
+A continued run (``--start-from``) still under way keeps its first run's final evaluation as ``final``, with
+``final_of`` naming that run: the expert the release holds until the continuation finishes.
+
 Reads each run folder's evaluations (``eval_rsi/evaluations.json``) and ``done.json``; prints a table and,
 with ``--json FILE``, writes it (the record the next person reads; commit it with the session's note).
 
@@ -12,7 +15,7 @@ import argparse
 import json
 from pathlib import Path
 
-from tools.release.expert_card import run_seconds
+from tools.release.expert_card import run_seconds, started_from
 
 
 def run_status(run: Path) -> dict:
@@ -34,15 +37,25 @@ def run_status(run: Path) -> dict:
         "best_at_steps": best.get("steps"),
         "finished": done is not None,
     }
+    first = started_from(run)
     if done is not None:
-        final = done.get("final_evaluation", {})
-        row["final"] = {
-            "episodes": final.get("episodes"),
-            "normalized_length": final.get("normalized_length"),
-            "normalized_reward": final.get("normalized_reward"),
-            **final.get("tracking", {}),
-        }
+        row["final"] = final_evaluation(done)
+    elif first is not None and (first / "done.json").is_file():
+        # A continued run under way: its expert until it finishes is the first run's, with that run's evaluation.
+        row["final"] = final_evaluation(json.loads((first / "done.json").read_text()))
+        row["final_of"] = first.as_posix()
     return row
+
+
+def final_evaluation(done: dict) -> dict:
+    """The final evaluation a finished run's ``done.json`` records (the paper's protocol), flat."""
+    final = done.get("final_evaluation", {})
+    return {
+        "episodes": final.get("episodes"),
+        "normalized_length": final.get("normalized_length"),
+        "normalized_reward": final.get("normalized_reward"),
+        **final.get("tracking", {}),
+    }
 
 
 def main() -> None:

@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Ships the real release once tools/release/cmu_v1_decoder.sh has finished (its last step writes
+# runs/release-cmu-v1/release_results.json): writes the cards of the decoder and its prior, the multi-clip policy and
+# the task policies from the runs' files (python -m tools.release.release_cards), then packages, each with its card:
+# the decoder cmu-v1 (float16) with its learned prior bound to it, the multi-clip policy cmu-v1 (float16, refused if
+# that changes an action by more than 0.002), and the task policies on cmu-v1 (TASKS; by default go-to-target, and
+# velocity control where it follows its commands: speed slope >= 0.5 and more reward per step than standing still).
+# Last, the release's figures go where the results page quotes them (docs/results/release_cmu_v1.json).
+# Read the cards it wrote before committing; after editing one, rerun this script: every file is written again from
+# the same runs (same weights, new card). Nothing is trained or downloaded; a minute or two.
+# DEST=DIR writes under another folder than the repository (a rehearsal; EXPERT_CARDS=DIR names the experts' cards):
+#   OUT=/tmp/rehearsal DEST=/tmp/ship EXPERT_CARDS=/tmp/rehearsal/cards tools/release/cmu_v1_ship.sh
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+[ -z "${VIRTUAL_ENV:-}" ] && [ -f .venv/bin/activate ] && . .venv/bin/activate  # the README install
+runs=${OUT:-runs/release-cmu-v1}
+dest=${DEST:-.}
+name=cmu-v1
+results=$runs/release_results.json
+if [ ! -f "$results" ]; then
+    echo "$results is missing: run tools/release/cmu_v1_decoder.sh to its end first (it writes that file last)" >&2
+    exit 1
+fi
+
+# 1. The cards, every figure read from the runs' files.
+python -m tools.release.release_cards "$runs" --decoder $name --root "$dest" ${EXPERT_CARDS:+--expert-cards "$EXPERT_CARDS"}
+cards=$dest/hierarchy/pretrained/cards
+
+# 2. The decoder with its prior (the same float16 weights the task policies trained on), then the whole policy.
+mkdir -p "$dest/hierarchy/pretrained/priors" "$dest/distill/npmp/pretrained"
+mocap-hierarchy decoder package "$runs/distill/decoder.safetensors" "$dest/hierarchy/pretrained/$name.safetensors" \
+    --card "$cards/$name.card.json" --scores "$runs/eval_seen_noisy.json" --prior "$runs/distill/prior.safetensors" \
+    --prior-out "$dest/hierarchy/pretrained/priors/$name.safetensors"
+mocap-hierarchy distill package "$runs/distill" "$dest/distill/npmp/pretrained/$name.safetensors" \
+    --card "$dest/distill/npmp/cards/$name.card.json" --scores "$runs/eval_seen_noisy.json"
+
+# 3. The task policies that ship, after the decoder so that they name it.
+follows=$(python -c 'import json, sys; print(json.load(open(sys.argv[1]))["shipped"]["velocity_control"]["follows_commands"])' \
+    "$results")
+default_tasks="go_to_target"
+[ "$follows" = True ] && default_tasks="velocity_control go_to_target"
+if [ "$follows" != True ] && [ -z "${TASKS:-}" ]; then
+    echo "the velocity-control policy on $name does not follow its commands: it does not ship (nor its card)"
+    rm -f "$cards/policies/$name/velocity_control.card.json"
+fi
+mkdir -p "$dest/hierarchy/pretrained/policies/$name"
+for task in ${TASKS:-$default_tasks}; do
+    mocap-hierarchy transfer package "$runs/ship/$task/$name/seed0" \
+        "$dest/hierarchy/pretrained/policies/$name/$task.safetensors" --card "$cards/policies/$name/$task.card.json"
+done
+
+# 4. The figures the results page quotes.
+mkdir -p "$dest/docs/results"
+cp "$results" "$dest/docs/results/release_cmu_v1.json"
+echo "shipped under $dest: read the cards (git diff), then the checklist 'Shipping it' of docs/guides/real-release.md"
