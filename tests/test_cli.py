@@ -66,12 +66,19 @@ def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys)
     assert shipped["demo"]["planned_steps"] == 40 and 0 < shipped["demo"]["steps"] <= 40
     verify(Path(shipped["recording"]))
     assert summary["verdicts"]["shipped"]["velocity_control"]["verdict"]
-    # the shipped experts lead: two of them recorded tracking their snippet from its first frame to its end
+    # the real experts lead: a walk, a turn and a jump recorded tracking their snippet from its first frame
     recorded = summary["shipped"]["experts"]["recordings"]
-    assert list(recorded) == ["SYN_walk_slow-0-182", "SYN_turn_left-0-182"]
-    for path in recorded.values():
+    assert (
+        summary["shipped"]["experts"]["group"] == "cmu-locomotion-v1"
+        and len(summary["shipped"]["experts"]["rows"]) == 24
+    )
+    # the walk and the turn to their last step (82 and 64 frames, less the reference's 5 look-ahead frames and one),
+    # the jump past its landing (112 frames)
+    reached = {"CMU_016_22-0-82": 76, "CMU_016_27-0-64": 58, "CMU_013_11-0-112": 70}
+    assert list(recorded) == list(reached)
+    for snippet, path in recorded.items():
         verify(Path(path))
-        assert max(frames(Path(path))[1]["/plots/action"]) > 150  # 182 frames: the expert keeps up to the end
+        assert max(frames(Path(path))[1]["/plots/action"]) >= reached[snippet]
     assert summary["config"]["clips"] == "cmu-locomotion-v1"  # the pipeline runs on real motion by default
     assert [row["snippet"] for row in summary["playback"]] == ["CMU_016_22-0-82"]  # the expert's baseline
     assert 0.0 < summary["playback"][0]["normalized_length"] <= 1.0

@@ -197,3 +197,36 @@ def test_a_release_command_with_a_flag_the_program_lacks_is_found(tmp_path):
     from tests.docs_checks import check_command_line
 
     assert "--no-such-flag" in (check_command_line(build_parser(), command) or "")
+
+
+def test_packaging_an_expert_group_writes_missing_cards_and_packages_each_finished_run_once(tmp_path):
+    """tools/release/package_experts.sh, with a stand-in ``mocap-hierarchy`` that logs its arguments: a run without
+    done.json is skipped, a missing card is written from the run, a packaged expert is left alone unless AGAIN=1."""
+    import os
+    import subprocess
+    import sys
+
+    runs = tmp_path / "runs"
+    fake_run(runs / "CMU_016_22-0-82", [600], clips="cmu-locomotion-v1", steps=10**6)
+    fake_run(runs / "CMU_013_11-0-112", [900], clips="cmu-locomotion-v1", steps=10**6)
+    (runs / "CMU_013_11-0-112" / "done.json").unlink()  # still training
+    bin_dir, log = tmp_path / "bin", tmp_path / "calls.log"
+    bin_dir.mkdir()
+    stand_in = bin_dir / "mocap-hierarchy"
+    stand_in.write_text(f'#!/usr/bin/env bash\necho "$*" >> {log}\nmkdir -p "$4/$(basename "$3")"\n')
+    stand_in.chmod(0o755)
+    (bin_dir / "python").symlink_to(sys.executable)
+    env = {**os.environ, "PATH": f"{bin_dir}:{os.environ['PATH']}"}
+    env.pop("AGAIN", None)
+    script = ROOT / "tools" / "release" / "package_experts.sh"
+    pretrained, cards = tmp_path / "pretrained", tmp_path / "cards"
+    command = [str(script), str(runs), str(pretrained), str(cards), "cmu-locomotion-v1"]
+    for again in ("", "", "1"):
+        subprocess.run(command, env={**env, "AGAIN": again} if again else env, check=True, cwd=tmp_path)
+    card = cards / "CMU_016_22-0-82.card.json"
+    assert check_card(json.loads(card.read_text()), "the written card")["name"] == "cmu-locomotion-v1/CMU_016_22-0-82"
+    assert not (cards / "CMU_013_11-0-112.card.json").exists()
+    package = f"expert package {runs}/CMU_016_22-0-82/ {pretrained} --card {card} --clips cmu-locomotion-v1"
+    assert log.read_text().splitlines() == [package, package]  # the first run, then AGAIN=1; not the second run
+    usage = subprocess.run([str(script), str(runs)], env=env, capture_output=True, text=True)
+    assert usage.returncode == 2 and "usage:" in usage.stderr

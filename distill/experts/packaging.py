@@ -135,7 +135,7 @@ def package_expert(
         staged = ExpertDir(staging)
         kept = {key: info[key] for key in ("clip_id", "start_step", "end_step")}
         write_json(staged.clip_info, {**kept, CLIPS_KEY: library} if library is not None else kept)
-        packaged = _with_card(load_expert(root), card)
+        packaged = _with_card(load_expert(root), card, library)
         packaged.save(staged, torch.float16 if float16 else torch.float32)
         written = ExpertPolicy.load(staged)
         observations = rollout_states(source, snippet, episodes, seed, clips, progress)
@@ -183,8 +183,15 @@ def _check_target(target: Path, source: Path) -> None:
         )
 
 
-def _with_card(policy: ExpertPolicy, card: Mapping[str, Any]) -> ExpertPolicy:
-    policy.spec = replace(policy.spec, provenance={**policy.spec.provenance, MODEL_CARD_KEY: dict(card)})
+def _with_card(policy: ExpertPolicy, card: Mapping[str, Any], library: str | None = None) -> ExpertPolicy:
+    """``policy`` carrying ``card``, and recording the shipped library's name as its clips where it has one.
+
+    A run records the clip file it read, which for a shipped library is a path into the trainer's cache.
+    """
+    provenance = {**policy.spec.provenance, MODEL_CARD_KEY: dict(card)}
+    if library is not None and "clips" in provenance:
+        provenance["clips"] = library
+    policy.spec = replace(policy.spec, provenance=provenance)
     return policy
 
 

@@ -39,16 +39,26 @@ class ExpertRun:
         expert: The expert directory.
         clips: The clip file.
         config: The run's settings.
+        library: The shipped clip library ``clips`` is the file of, if any: the expert file records its name
+            rather than a path into this machine's cache.
         state: The run state (evaluations so far, the best one, when checkpoints are due); updated in place.
         progress: Show a progress bar for the final evaluation.
     """
 
     def __init__(
-        self, snippet: str, expert: ExpertDir, clips: str, config: ExpertConfig, state: RunState, progress: bool
+        self,
+        snippet: str,
+        expert: ExpertDir,
+        clips: str,
+        config: ExpertConfig,
+        state: RunState,
+        progress: bool,
+        library: str | None = None,
     ) -> None:
         self.snippet = snippet
         self.expert = expert
         self.clips = clips
+        self.library = library
         self.config = config
         self.state = state
         self.progress = progress
@@ -72,7 +82,7 @@ class ExpertRun:
                 "residual_actions": self.config.residual_actions,
                 "action_std": std,
                 # No date: the file's bytes follow from the run (done.json says when it finished).
-                "provenance": provenance(dated=False, trained_steps=int(steps), clips=str(self.clips)),
+                "provenance": provenance(dated=False, trained_steps=int(steps), clips=self.library or str(self.clips)),
             },
         )
 

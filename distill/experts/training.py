@@ -153,7 +153,7 @@ def _train(
     resumed_at = boundary.steps if boundary is not None else None
     model.set_logger(resumable_logger(expert.root, ["csv"], resumed=continued, steps=resumed_at))
 
-    run = ExpertRun(name, expert, clip_file, config, state, progress)
+    run = ExpertRun(name, expert, clip_file, config, state, progress, library)
     snapshots = vec_env_snapshots()
     if boundary is not None:  # last: the random generators go back to the checkpoint's
         continue_exactly(expert, model, boundary, snapshots)

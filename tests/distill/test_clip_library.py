@@ -120,6 +120,20 @@ def test_packaging_keeps_the_record_and_shipped_names_need_no_clips(real_expert,
     assert set(json.loads((tmp_path / "completion.json").read_text())["results"]) == {SNIPPET}
 
 
+def test_a_run_and_a_packaged_expert_name_the_library_not_a_cache_path(real_expert, tmp_path):
+    from distill.experts.loading import load_expert
+
+    assert load_expert(real_expert).spec.provenance["clips"] == LIBRARY  # the run records the name it was given
+    older = recording(real_expert, tmp_path / "older", LIBRARY)  # trained when runs recorded the cached file
+    policy = load_expert(older)
+    cached = "/root/.cache/mocap_hierarchy/cmu-locomotion-v1-90f3595c2abf-x1.h5"
+    policy.spec = dataclasses.replace(policy.spec, provenance={**policy.spec.provenance, "clips": cached})
+    policy.save(ExpertDir(older))
+    assert load_expert(older).spec.provenance["clips"] == cached
+    packaged = package_expert(older, tmp_path / "out", CARD, float16=False, episodes=1)
+    assert load_expert(packaged.path).spec.provenance["clips"] == LIBRARY
+
+
 def test_packaging_an_expert_without_the_record_records_the_library_it_is_given(real_expert, tmp_path):
     legacy = without_record(real_expert, tmp_path / "legacy")
     packaged = package_expert(legacy, tmp_path / "out", CARD, float16=False, episodes=1, clips=LIBRARY)

@@ -1,15 +1,16 @@
 #!/usr/bin/env bash
 # Ships the real release once tools/release/cmu_v1_decoder.sh has finished (its last step writes
-# runs/release-cmu-v1/release_results.json): writes the cards of the decoder and its prior, the multi-clip policy and
+# runs/release-cmu-v1/release_results.json): packages the expert group again from its runs, writes the cards of the decoder and its prior, the multi-clip policy and
 # the task policies from the runs' files (python -m tools.release.release_cards), then packages, each with its card:
 # the decoder cmu-v1 (float16) with its learned prior bound to it, the multi-clip policy cmu-v1 (float16, refused if
 # that changes an action by more than 0.002), and the task policies on cmu-v1 (TASKS; by default go-to-target, and
 # velocity control where it follows its commands: speed slope >= 0.5 and more reward per step than standing still).
 # Last, the release's figures go where the results page quotes them (docs/results/release_cmu_v1.json).
 # Read the cards it wrote before committing; after editing one, rerun this script: every file is written again from
-# the same runs (same weights, new card). Nothing is trained or downloaded; a minute or two.
-# DEST=DIR writes under another folder than the repository (a rehearsal; EXPERT_CARDS=DIR names the experts' cards):
-#   OUT=/tmp/rehearsal DEST=/tmp/ship EXPERT_CARDS=/tmp/rehearsal/cards tools/release/cmu_v1_ship.sh
+# the same runs (same weights, new card). Nothing is trained or downloaded; about 3 minutes of CPU.
+# DEST=DIR writes under another folder than the repository (a rehearsal; EXPERTS=DIR and EXPERT_CARDS=DIR name the
+# expert runs and their cards):
+#   OUT=/tmp/rehearsal DEST=/tmp/ship tools/release/cmu_v1_ship.sh
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 [ -z "${VIRTUAL_ENV:-}" ] && [ -f .venv/bin/activate ] && . .venv/bin/activate  # the README install
@@ -21,6 +22,12 @@ if [ ! -f "$results" ]; then
     echo "$results is missing: run tools/release/cmu_v1_decoder.sh to its end first (it writes that file last)" >&2
     exit 1
 fi
+
+# 0. The expert group again from its runs, with the same cards (same weights; harmless to repeat): the files packaged
+#    before experts recorded their library's name in their provenance carry the path of its cached clip file.
+AGAIN=1 tools/release/package_experts.sh "${EXPERTS:-runs/release-cmu-v1/experts}" \
+    "$dest/distill/experts/pretrained/cmu-locomotion-v1" "${EXPERT_CARDS:-distill/experts/cards/cmu-locomotion-v1}" \
+    cmu-locomotion-v1
 
 # 1. The cards, every figure read from the runs' files.
 python -m tools.release.release_cards "$runs" --decoder $name --root "$dest" ${EXPERT_CARDS:+--expert-cards "$EXPERT_CARDS"}
