@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import datetime
 from importlib import metadata
+from pathlib import PurePath
 from typing import Any
 
 DISTRIBUTION = "mocap-hierarchy"
@@ -32,3 +33,17 @@ def provenance(dated: bool = True, **facts: Any) -> dict[str, Any]:
     """Provenance facts plus the date (unless ``dated`` is false: see the module docstring) and library version."""
     stamp = {"date": now()} if dated else {}
     return {**facts, **stamp, "library_version": library_version()}
+
+
+def shareable(facts: dict[str, Any]) -> dict[str, Any]:
+    """``facts`` as a packaged file records them: rollout files (``dataset``) by name, not by this machine's path.
+
+    A training run records where its rollout files were (a later step, such as a GPT's float16 check, reads them
+    again); a file packaged for others names them only, as the dataset's layout does (one file per clip).
+    """
+    dataset = facts.get("dataset")
+    if isinstance(dataset, str):
+        return {**facts, "dataset": PurePath(dataset).name}
+    if isinstance(dataset, list):
+        return {**facts, "dataset": [PurePath(str(path)).name for path in dataset]}
+    return dict(facts)

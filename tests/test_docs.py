@@ -179,6 +179,29 @@ def test_a_quoted_figure_that_differs_from_its_json_is_found(tmp_path, monkeypat
     assert "shows follows, the file holds follows the command" in problems[2]
 
 
+def test_pages_quoting_a_json_written_again_get_its_new_figures(tmp_path):
+    import quoted_values
+
+    (tmp_path / "docs" / "results").mkdir(parents=True)
+    source = tmp_path / "docs" / "results" / "release.json"
+    source.write_text(json.dumps({"multi_clip": {"seen": 0.91234, "trials": 90}, "other": 1.0}))
+    page = tmp_path / "docs" / "results.md"
+    spans = "<!-- value: docs/results/release.json multi_clip.seen -->0.48<!-- /value --> of <!-- value: "
+    spans += "docs/results/release.json multi_clip.trials -->6<!-- /value -->"
+    spans += " (<!-- value: r.json x -->7<!-- /value -->)"
+    page.write_text(f"# R\n\n{spans}\n")
+    (tmp_path / "README.md").write_text("no figures\n")
+    assert quoted_values.refresh_pages(["docs/results/release.json"], tmp_path) == {"docs/results.md": 2}
+    assert "-->0.91<!--" in page.read_text() and "-->90<!--" in page.read_text()
+    assert "r.json x -->7<!--" in page.read_text()  # another file's figure left as it was
+    assert quoted_values.refresh_pages(["docs/results/release.json"], tmp_path) == {}
+    source.write_text(json.dumps({"multi_clip": {}}))
+    with pytest.raises(KeyError, match=r"docs/results\.md quotes 'seen'"):
+        quoted_values.refresh_pages(["docs/results/release.json"], tmp_path)
+    with pytest.raises(FileNotFoundError, match=r"missing\.json"):
+        quoted_values.refresh_pages(["missing.json"], tmp_path)
+
+
 def test_a_row_under_a_table_of_other_width_is_found(tmp_path, monkeypatch):
     monkeypatch.setattr(docs_checks, "ROOT", tmp_path)
     table = "| a | b |\n|---|---|\n| `x \\| y` | 2 |\n"

@@ -113,18 +113,30 @@ def version(name: str) -> int | None:
     return int(found.group(1)) if found else None
 
 
-def current_decoder(names: list[str]) -> str:
-    """The current decoder among the shipped ones: the highest version (the catalogue knows no other order)."""
-    versioned = [name for name in names if version(name) is not None]
-    if not versioned:
-        raise ValueError(f"no versioned decoder among {names}")
-    return max(versioned, key=lambda name: version(name) or 0)
+def superseded(names: list[str]) -> set[str]:
+    """The decoders a later version of the same line replaces (``synthetic-v2`` beside ``synthetic-v3``; ``cmu-v1``
+    is another line), by number, not by name."""
+    newest: dict[str, int] = {}
+    for name in names:
+        if (number := version(name)) is not None:
+            line = name.rsplit("-v", 1)[0]
+            newest[line] = max(newest.get(line, number), number)
+    return {
+        name for name in names if (number := version(name)) is not None and number < newest[name.rsplit("-v", 1)[0]]
+    }
 
 
-def models_order_problems(html: str, decoders: list[str]) -> list[str]:
-    """On the models page, the first decoder card linked is the current one, in the sidebar and in the content,
-    and the sidebar marks every other decoder superseded."""
-    current = current_decoder(decoders)
+def recommended_decoder(models_index: str) -> str:
+    """The decoder the models page tells users to use (its ``**Use `NAME` ...**`` line)."""
+    found = re.search(r"\*\*Use `([\w.-]+)`", models_index)
+    if found is None:
+        raise ValueError("the models page recommends no decoder (a line `**Use `NAME` ...**`)")
+    return found.group(1)
+
+
+def models_order_problems(html: str, decoders: list[str], current: str) -> list[str]:
+    """On the models page, the first decoder card linked is the recommended one, ``current``, in the sidebar and in
+    the content, and the sidebar marks every decoder a later version replaces superseded."""
     pages = {f"{name}.html": name for name in decoders}
     soup = BeautifulSoup(html, "html.parser")
     sidebar, main = soup.find(class_="sidebar-tree"), main_content(html)
@@ -137,7 +149,8 @@ def models_order_problems(html: str, decoders: list[str]) -> list[str]:
         elif named[0][0] != current:
             problems.append(f"{place}: the first decoder listed is {named[0][0]}, not the current {current}")
         if place == "sidebar":
-            stale = {name for name, a in named if name != current and "superseded" not in a.get_text()}
+            replaced = superseded(decoders)
+            stale = {name for name, a in named if name in replaced and "superseded" not in a.get_text()}
             problems += [f"sidebar: {name} is not marked superseded" for name in sorted(stale)]
     return problems
 
@@ -211,8 +224,9 @@ def test_the_current_decoder_comes_first(built_site):
     from distill.catalogue import catalogue
 
     decoders = [entry.name for entry in catalogue().entries(["decoder"])]
-    assert len(decoders) >= 2
-    assert models_order_problems((built_site / "models" / "index.html").read_text(), decoders) == []
+    current = recommended_decoder((DOCS / "models" / "index.md").read_text())
+    assert len(decoders) >= 2 and current in decoders and current not in superseded(decoders)
+    assert models_order_problems((built_site / "models" / "index.html").read_text(), decoders, current) == []
 
 
 def test_lists_are_numbered_as_their_text_says(built_site):
@@ -278,22 +292,29 @@ def test_a_globbed_incomplete_or_unlisted_index_is_found(tmp_path):
 
 
 def test_a_superseded_decoder_listed_first_is_found():
-    decoders = ["synthetic-v1", "synthetic-v2", "synthetic-v10"]
-    assert current_decoder(decoders) == "synthetic-v10"  # by number, not by name
+    decoders = ["cmu-v1", "synthetic-v1", "synthetic-v2", "synthetic-v10"]
+    assert superseded(decoders) == {"synthetic-v1", "synthetic-v2"}  # by number, not by name; cmu-v1: another line
+    assert recommended_decoder("# M\n\n**Use `synthetic-v10` with its prior** (`--decoder ...`).") == "synthetic-v10"
+    with pytest.raises(ValueError, match="recommends no decoder"):
+        recommended_decoder("# M\n\nUse any.")
     good = page(
         '<a href="synthetic-v10.html">v10</a> <a href="synthetic-v2.html">v2</a>',
-        '<a href="synthetic-v10.html">Decoder synthetic-v10</a>'
+        '<a href="synthetic-v10.html">Decoder synthetic-v10</a><a href="cmu-v1.html">Decoder cmu-v1</a>'
         '<a href="synthetic-v2.html">synthetic-v2 (superseded)</a>'
         '<a href="synthetic-v1.html">synthetic-v1 (superseded)</a>',
     )
-    assert models_order_problems(good, decoders) == []
+    assert models_order_problems(good, decoders, "synthetic-v10") == []
     old_first = page(
         '<a href="synthetic-v1.html">v1</a> <a href="synthetic-v10.html">v10</a>',
         '<a href="synthetic-v1.html">Decoder synthetic-v1</a><a href="synthetic-v10.html">Decoder synthetic-v10</a>',
     )
-    problems = models_order_problems(old_first, decoders)
+    problems = models_order_problems(old_first, decoders, "synthetic-v10")
     assert len([p for p in problems if "the first decoder listed is synthetic-v1" in p]) == 2
     assert "sidebar: synthetic-v1 is not marked superseded" in problems
+    assert models_order_problems(good, decoders, "cmu-v1") == [  # another recommendation, the same page
+        "sidebar: the first decoder listed is synthetic-v10, not the current cmu-v1",
+        "content: the first decoder listed is synthetic-v10, not the current cmu-v1",
+    ]
 
 
 def test_a_list_numbered_from_elsewhere_is_found():

@@ -223,3 +223,13 @@ def test_shipped_artifacts_are_named_by_their_path_and_an_existing_path_wins(tmp
     (folder / "v3" / ".hidden.safetensors").write_text("policy")
     assert list(folders.names()) == ["v3/expert"] and list(policies.names()) == ["v3/walk"]
     assert ShippedArtifacts(tmp_path / "none", "decoder").hint() == "no decoder is shipped with this installation"
+
+
+def test_a_packaged_file_names_its_rollout_files_without_this_machines_paths():
+    from foundation.provenance import shareable
+
+    facts = {"dataset": ["/work/me/runs/dataset/CMU_016_22.hdf5", "runs/dataset/CMU_013_11.hdf5"], "steps": 7}
+    assert shareable(facts) == {"dataset": ["CMU_016_22.hdf5", "CMU_013_11.hdf5"], "steps": 7}
+    assert facts["dataset"][0].startswith("/work")  # the run's own record is left as it was
+    assert shareable({"dataset": "/data/rollouts.hdf5"}) == {"dataset": "rollouts.hdf5"}
+    assert shareable({"steps": 7}) == {"steps": 7}

@@ -230,3 +230,41 @@ def test_packaging_an_expert_group_writes_missing_cards_and_packages_each_finish
     assert log.read_text().splitlines() == [package, package]  # the first run, then AGAIN=1; not the second run
     usage = subprocess.run([str(script), str(runs)], env=env, capture_output=True, text=True)
     assert usage.returncode == 2 and "usage:" in usage.stderr
+
+
+def test_the_release_status_reads_each_step_and_transfer_run_where_it_stands(tmp_path, capsys):
+    from tools.release import release_status
+
+    runs = tmp_path / "release"
+    fake_run(runs / "experts" / "CMU_016_22-0-82", [600], clips="cmu-locomotion-v1")
+    (runs / "experts" / "CMU_013_11-0-112").mkdir()  # not finished
+    (runs / "dataset").mkdir()
+    (runs / "dataset" / "CMU_016_22.hdf5").write_bytes(b"")
+    (runs / "distill").mkdir()
+    (runs / "distill" / "history.json").write_text(json.dumps({"step": [50, 100, 150], "loss": [3, 2, 1]}))
+    (runs / "eval_seen.json").write_text("{}")
+    header = "time/total_timesteps,rollout/task_return_mean\n"
+    done, running = runs / "transfer/go_to_target/cmu-v1/seed0", runs / "ship/velocity_control/cmu-v1/seed0"
+    for folder, rows in ((done, "4096,0.5\n8192,1.25\n"), (running, "4096,7.0\n")):
+        folder.mkdir(parents=True)
+        (folder / "progress.csv").write_text(header + rows)
+    (done / "transfer.json").write_text(json.dumps({"task": "go_to_target", "finished": "2026-11-28T21:51:14+00:00"}))
+    (runs / "transfer/go_to_target/cmu-v1/seed1").mkdir()  # made, nothing logged yet
+    assert release_status.main([str(runs), "--json", str(tmp_path / "status.json")]) == 0
+    status = json.loads((tmp_path / "status.json").read_text())
+    assert status["experts_finished"] == 1 and status["rollout_files"] == 1
+    assert status["distillation"] == {"state": "under way", "steps": 150}
+    assert (
+        status["outputs"]["multi-clip policy on its snippets"] and not status["outputs"]["on snippets of unseen trials"]
+    )
+    assert [
+        (Path(run["run"]).relative_to(runs).as_posix(), run["state"], run["steps"]) for run in status["transfer"]
+    ] == [
+        ("transfer/go_to_target/cmu-v1/seed0", "done", 8192),
+        ("transfer/go_to_target/cmu-v1/seed1", "not started", 0),
+        ("ship/velocity_control/cmu-v1/seed0", "under way", 4096),
+    ]
+    assert status["transfer"][0]["task_return"] == 1.25
+    (runs / "distill" / "distill.json").write_text(json.dumps({"steps": 7700}))
+    assert release_status.release_status(runs)["distillation"] == {"state": "done", "steps": 7700}
+    assert "step 150" in capsys.readouterr().out

@@ -4,13 +4,23 @@
 ``TEXT`` the value as the page shows it, rounded to the decimals it is written with. One definition for the
 writer (``tools/readme_numbers.py`` rewrites the spans after a measurement) and the reader (the docs test
 checks them).
+
+After a JSON file quoted by the pages is written again (a release's figures), every span quoting it is rewritten
+with its new values, same decimals, in the README and every page of the site:
+
+    python tools/quoted_values.py docs/results/release_cmu_v1.json
 """
 
 from __future__ import annotations
 
+import argparse
+import json
 import re
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
 
 VALUE_SPAN = re.compile(r"<!-- value: (\S+) (\S+) -->(.*?)<!-- /value -->")
 
@@ -60,3 +70,56 @@ def mismatches(text: str, read: Callable[[str], Any]) -> list[str]:
                 f"{source} {key}: the page shows {shown}, the file holds {value} ({shown_as(value, shown)})"
             )
     return problems
+
+
+def quoting_pages(root: Path) -> list[Path]:
+    """The README and every page of the site under ``root`` (the built site left out)."""
+    docs = sorted(page for page in (root / "docs").rglob("*.md") if "_build" not in page.parts)
+    return [root / "README.md", *docs]
+
+
+def refresh_pages(files: list[str], root: Path = ROOT) -> dict[str, int]:
+    """Rewrites every span quoting ``files`` (paths from ``root``) in the README and the site's pages.
+
+    Returns:
+        ``{page: spans changed}`` for each page that changed.
+
+    Raises:
+        FileNotFoundError: A file that does not exist.
+        KeyError: A key a page quotes that the file does not hold, naming the page (which is left as it was;
+            pages before it are rewritten).
+    """
+    sources = {}
+    for file in files:
+        path = root / file
+        if not path.is_file():
+            raise FileNotFoundError(f"{file}: no such file under {root}")
+        sources[Path(file).as_posix()] = json.loads(path.read_text())
+    changed = {}
+    for page in quoting_pages(root):
+        try:
+            text, count = refreshed(page.read_text(), sources)
+        except (KeyError, IndexError) as error:
+            raise KeyError(f"{page.relative_to(root)} quotes {error} of {', '.join(files)}, which it lacks") from None
+        if count:
+            page.write_text(text)
+            changed[str(page.relative_to(root))] = count
+    return changed
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="rewrite the docs' quoted figures of JSON files written again")
+    parser.add_argument("files", nargs="+", help="JSON files as the pages name them (from the repository root)")
+    args = parser.parse_args(argv)
+    try:
+        changed = refresh_pages(args.files)
+    except (FileNotFoundError, KeyError) as error:
+        parser.error(str(error).strip("'\""))
+    for page, count in changed.items():
+        print(f"{page}: {count} figure(s) changed")
+    print(f"{sum(changed.values())} figure(s) changed in {len(changed)} page(s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -43,7 +43,7 @@ import time
 from datetime import date
 from pathlib import Path
 
-from quoted_values import refreshed  # tools/quoted_values.py, beside this script
+from quoted_values import quoting_pages, refreshed  # tools/quoted_values.py, beside this script
 
 ROOT = Path(__file__).resolve().parents[1]
 NUMBERS = ROOT / "docs" / "readme_numbers.json"
@@ -100,16 +100,11 @@ def update_readme(numbers: dict[str, float]) -> int:
     return changed
 
 
-def pages_quoting() -> list[Path]:
-    """The README and every page of the site: their ``<!-- value: FILE KEY -->`` spans of this script's files."""
-    return [README, *(page for page in sorted((ROOT / "docs").rglob("*.md")) if "_build" not in page.parts)]
-
-
 def update_quoted_values() -> int:
     """Rewrites the value spans that quote this script's files (same decimals as shown); returns how many changed."""
     sources = {str(path.relative_to(ROOT)): json.loads(path.read_text()) for path in (NUMBERS, QUICKSTART_SUMMARY)}
     changed = 0
-    for page in pages_quoting():
+    for page in quoting_pages(ROOT):
         text, count = refreshed(page.read_text(), sources)
         if count:
             page.write_text(text)

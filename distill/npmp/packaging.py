@@ -27,6 +27,7 @@ from distill.npmp.config import PACKAGING_OBSERVATIONS, PACKAGING_TOLERANCE
 from distill.npmp.model import NpmpPolicy
 from distill.npmp.policy_file import load_policy
 from foundation.atomic import atomic_path
+from foundation.provenance import shareable
 from hierarchy.cards.model_card import CARD_KEY, check_card
 
 
@@ -111,7 +112,7 @@ def package_policy(
             f"{out} is a folder: name the file to write (distill/npmp/pretrained/NAME.safetensors to ship it as NAME)"
         )
     policy = load_policy(source)
-    policy.spec = replace(policy.spec, provenance={**policy.spec.provenance, CARD_KEY: checked})
+    policy.spec = replace(policy.spec, provenance={**shareable(policy.spec.provenance), CARD_KEY: checked})
     with atomic_path(out) as staging:  # takes the name ``out`` only when the block completes
         policy.save(staging, torch.float16 if float16 else torch.float32)
         difference = action_difference(policy, load_policy(staging), observations)

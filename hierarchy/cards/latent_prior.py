@@ -6,6 +6,9 @@ its shipped decoder and says whether that decoder's behaviour is the one it was 
 
 from __future__ import annotations
 
+from pathlib import PurePath
+from typing import Any
+
 import hierarchy.pretrained as pretrained
 from foundation.interfaces import flat_observation_port, vector_port
 from hierarchy.cards.markdown import (
@@ -32,23 +35,24 @@ def prior_card(context: CardContext) -> CardPage:
     sizes = {str(k): int(v) for k, v in description.get("observation_sizes", {}).items()}
     latent_size, hidden = int(description.get("latent_size", 0)), description.get("hidden_layers", [])
     provenance = context.provenance
+    learned = bool(description.get("stochastic"))  # learned with the decoder; a fitted prior gives a mean alone
     decoder = context.shipped
     decoder_text = (
-        links.card(f"`{decoder}`", card_page_name(decoder), f"mocap-hierarchy decoder card {decoder}")
+        "decoder " + links.card(f"`{decoder}`", card_page_name(decoder), f"mocap-hierarchy decoder card {decoder}")
         if decoder
         else "the decoder whose behaviour SHA-256 is under Artifacts"
     )
     overview = [
-        card.get("summary", f"The latent prior of decoder {decoder_text}."),
+        card.get("summary", f"The latent prior of {decoder_text}."),
         "",
         f"A frozen state-conditioned latent prior `mu(s)`: an MLP of {layers_text(hidden)} "
         f"({description.get('activation', 'elu')}) from the decoder's {sum(sizes.values())} observation values to "
-        f"the mean of its {latent_size}-value latent; {facts.parameters('net.'):,} parameters. It was fitted to the "
-        "latents the multi-clip policy's encoder chose in each state.",
+        f"the mean of its {latent_size}-value latent; {facts.parameters('net.'):,} parameters. "
+        + (LEARNED if learned else "It was fitted to the latents the multi-clip policy's encoder chose in each state."),
     ]
     guide = links.page("the latent prior guide", "guides/latent-prior.md")
     intended = card.get("intended_use") or (
-        f"Beneath a high-level policy on decoder {decoder_text}: with a prior, the latent-action environments read "
+        f"Beneath a high-level policy on {decoder_text}: with a prior, the latent-action environments read "
         "the policy's action as a residual, `z = mu(s) + a` (`latent_prior=` in Python, "
         f"`--latent-prior {decoder or 'FILE'}` on the command line), so training starts from the motions of the "
         f"training clips instead of from `z = 0`; see {guide}. "
@@ -56,6 +60,7 @@ def prior_card(context: CardContext) -> CardPage:
     )
     fit = provenance.get("fit", {})
     training = [
+        *bullets(_distillation_facts(provenance)),
         *bullets({k: provenance[k] for k in ("snippets", "samples") if k in provenance}),
         *bullets({f"fit: {k}": v for k, v in fit.items()} if isinstance(fit, dict) else {"fit": fit}),
         *bullets({"fitting settings": provenance["config"]} if "config" in provenance else {}),
@@ -84,8 +89,11 @@ def prior_card(context: CardContext) -> CardPage:
     ]
     limitations = [
         *context.notes(),
-        "- It was fitted on the states of its training snippets: away from them its mean is an extrapolation.",
-        "- The file holds the mean only, no spread around it.",
+        "- It was made on the states of its training snippets: away from them its mean is an extrapolation.",
+        "- It gives a spread too (a log standard deviation per latent value); the latent-action environments use its "
+        "mean."
+        if learned
+        else "- The file holds the mean only, no spread around it.",
         "- Another decoder is refused (`check_fits` compares the behaviour SHA-256), even one of the same "
         "architecture.",
     ]
@@ -93,14 +101,35 @@ def prior_card(context: CardContext) -> CardPage:
     return context.page(
         title,
         (overview, [intended], training, inputs, artifacts, runtime, limitations),
-        "Fitted with `mocap-hierarchy decoder fit-prior` (its settings and outcome are under Training).",
-        PRIOR_TRAINING_FACTS,
+        "Learned with its decoder by `mocap-hierarchy distill train --prior learned` (its facts are under Training)."
+        if learned
+        else "Fitted with `mocap-hierarchy decoder fit-prior` (its settings and outcome are under Training).",
+        PRIOR_TRAINING_FACTS + LEARNED_TRAINING_FACTS,
         card.get("commands") or _fit_commands(decoder),
     )
 
 
 PRIOR_TRAINING_FACTS = ("snippets", "samples", "fit", "config")
-"""The provenance facts of a prior file that its card shows under Training."""
+"""The provenance facts of a fitted prior's file that its card shows under Training."""
+
+LEARNED_TRAINING_FACTS = ("dataset", "episodes", "steps", "batch_size", "weighting", "final_loss")
+"""The provenance facts of a learned prior's file (its distillation's) that its card shows under Training."""
+
+LEARNED = (
+    "It was learned with the decoder in the distillation (`distill train --prior learned`): the encoder's latents were "
+    "pulled towards it (the KL term), so its mean is where the decoder's skills begin in each state."
+)
+"""How a learned prior's card says where it comes from."""
+
+
+def _distillation_facts(provenance: dict[str, Any]) -> dict[str, Any]:
+    """A learned prior's distillation facts as its Training section lists them (rollout files by name)."""
+    facts = {key: provenance[key] for key in LEARNED_TRAINING_FACTS if key in provenance and key != "dataset"}
+    dataset = provenance.get("dataset")
+    if isinstance(dataset, list) and dataset:
+        names = ", ".join(PurePath(str(path)).name for path in dataset[:3]) + (", ..." if len(dataset) > 3 else "")
+        return {"rollout files": f"{len(dataset)} ({names})", **facts}
+    return facts
 
 
 def _fit_commands(decoder: str | None) -> list[str]:

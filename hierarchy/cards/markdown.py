@@ -17,6 +17,7 @@ from typing import Any
 
 from foundation.fingerprints import file_sha256
 from foundation.json_fields import parse_json, require_mapping
+from foundation.provenance import shareable
 from foundation.shell_lines import wrapped_command
 from hierarchy.cards.model_card import CARD_KEY, ModelCardError
 
@@ -310,7 +311,7 @@ def provenance_lines(
     context: CardContext, made_by: str, shown: tuple[str, ...] = (), commands: list[str] | None = None
 ) -> list[str]:
     """``made_by``, the provenance facts not ``shown`` under Training, and the commands that rebuild the file."""
-    facts = {k: v for k, v in context.provenance.items() if k not in shown}
+    facts = {k: v for k, v in shareable(context.provenance).items() if k not in shown}  # rollout files by name
     none = f"No {'other ' if shown else ''}provenance facts are recorded in the file."
     lines = [made_by, "", *(bullets(facts) or [none])]
     commands = context.card.get("commands", []) if commands is None else commands

@@ -35,6 +35,7 @@ from typing import Any
 
 import torch
 
+from foundation.provenance import shareable
 from hierarchy.decoder import LatentDecoder, load_decoder
 
 CARD_KEY = "model_card"
@@ -159,7 +160,7 @@ def package_decoder(
 
         latent_prior = load_latent_prior(prior)
         latent_prior.check_fits(decoder)  # before anything is written
-    decoder.spec = replace(decoder.spec, provenance={**decoder.spec.provenance, CARD_KEY: card})
+    decoder.spec = replace(decoder.spec, provenance={**shareable(decoder.spec.provenance), CARD_KEY: card})
     path = decoder.save(out, torch.float16 if float16 else torch.float32)
     packaged = load_decoder(path)
     if latent_prior is not None and prior_out is not None:
@@ -167,7 +168,7 @@ def package_decoder(
         latent_prior.spec = replace(
             spec,
             decoder_behaviour_sha256=packaged.behaviour_sha256(),
-            provenance={**spec.provenance, "packaged_from": spec.decoder_behaviour_sha256},
+            provenance={**shareable(spec.provenance), "packaged_from": spec.decoder_behaviour_sha256},
         )
         latent_prior.save(prior_out)
     return path, action_difference(decoder, packaged)

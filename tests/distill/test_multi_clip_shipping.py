@@ -77,6 +77,9 @@ def test_packaging_stores_the_card_and_float16_weights_within_the_tolerance(trai
     source, loaded = load_policy(trained), load_policy(packaged.path)
     assert loaded.spec.provenance[CARD_KEY] == CARD
     assert loaded.spec.provenance["steps"] == 20  # the training facts are kept beside the card
+    recorded = source.spec.provenance["dataset"]  # where this machine keeps them; the packaged file: their names
+    assert Path(recorded[0]).parent != Path(".")
+    assert loaded.spec.provenance["dataset"] == [Path(path).name for path in recorded]
     assert {p.dtype for p in loaded.parameters()} == {torch.float32}  # widened on loading
     for name, weight in source.state_dict().items():  # each weight is the source's rounded to float16
         expected = weight if name in NORMALISERS else weight.half().float()

@@ -146,7 +146,8 @@ def test_the_results_file_averages_each_decoders_seeds_and_judges_the_shipped_po
         target[str(run)] = {"episodes": 50, "task_return": 3.0 if label == "cmu-v1" else 1.0}
     _write(runs / "velocity_control_300k.json", {"settings": {}, "policies": velocity})
     _write(runs / "go_to_target_300k.json", target)
-    _write(runs / "ship_go_to_target.json", {"seeds": [1000], "shipped": {"episodes": 50, "task_return": 4.0}})
+    shipped_target = {"episodes": 50, "task_return": 4.0, "heading_cosine": 0.6}
+    _write(runs / "ship_go_to_target.json", {"seeds": [1000], "shipped": shipped_target})
     assert release_results.main([str(runs), "--json", str(tmp_path / "results.json")]) == 0
     results = json.loads((tmp_path / "results.json").read_text())
     cmu = results["transfer"]["velocity_control"]["cmu-v1"]
@@ -161,4 +162,7 @@ def test_the_results_file_averages_each_decoders_seeds_and_judges_the_shipped_po
     shipped = json.loads((runs / "ship_velocity_control.json").read_text())
     shipped["policies"]["shipped"]["still_reward_per_step"] = 0.75  # standing still would earn more
     _write(runs / "ship_velocity_control.json", shipped)
-    assert not release_results.release_results(runs)["shipped"]["velocity_control"]["follows_commands"]
+    _write(runs / "ship_go_to_target.json", {"shipped": {"episodes": 50, "task_return": 4.0, "heading_cosine": 0.4}})
+    judged = release_results.release_results(runs)["shipped"]
+    assert results["shipped"]["go_to_target"]["follows_commands"]  # heading cosine 0.6: heads for its targets
+    assert not judged["velocity_control"]["follows_commands"] and not judged["go_to_target"]["follows_commands"]

@@ -17,7 +17,7 @@ from foundation.shell_lines import split_comment
 from hierarchy import load_decoder, load_latent_prior
 from hierarchy.cards.decoder import scores_markdown
 from hierarchy.cards.markdown import CARD_FILE, SECTIONS, TESTED_WITH, DocLinks
-from hierarchy.cards.model_card import ModelCardError, card_of, check_card, package_decoder
+from hierarchy.cards.model_card import CARD_KEY, ModelCardError, card_of, check_card, package_decoder
 from hierarchy.cards.page import TASK_POLICY_FORMAT, card_page, model_card
 from hierarchy.decoder import DecoderMismatchError
 from hierarchy.latent_prior import LatentPrior, shipped_priors
@@ -87,9 +87,33 @@ def test_a_shipped_priors_card_has_the_eight_sections_and_agrees_with_its_file(n
     artifacts = section(page, "Artifacts")
     assert f"SHA-256**: `{file_sha256(path)}`" in artifacts
     assert f"`{load_decoder(name).behaviour_sha256()}`, that of the shipped decoder `{name}`" in artifacts
-    training = section(page, "Training")
-    assert f"**samples**: {prior.spec.provenance['samples']}" in training
-    assert f"{prior.spec.provenance['fit']['explained']:.0%} of the latents' held-out variance" in training
+    training, provenance = section(page, "Training"), prior.spec.provenance
+    if prior.spec.stochastic:  # learned with its decoder: the distillation's facts
+        assert f"**rollout files**: {len(provenance['dataset'])} (" in training
+        assert f"**steps**: {provenance['steps']}" in training and "--prior learned" in section(page, "Provenance")
+    else:  # fitted afterwards
+        assert f"**samples**: {provenance['samples']}" in training
+        assert f"{provenance['fit']['explained']:.0%} of the latents' held-out variance" in training
+
+
+def test_a_learned_priors_card_says_it_was_learned_with_its_decoder_and_lists_the_distillations_facts(tmp_path):
+    decoder = load_decoder(small_decoder().save(tmp_path / "decoder.safetensors"))
+    facts = {"dataset": ["/runs/dataset/CMU_016_22.hdf5", "/runs/dataset/CMU_013_11.hdf5"], "steps": 7700}
+    learned = LatentPrior.for_decoder(decoder, hidden_layers=(16,), stochastic=True)
+    learned.spec = dataclasses.replace(learned.spec, provenance={**facts, "policy": "policy.safetensors"})
+    page = card_page(learned.save(tmp_path / "learned.safetensors"))
+    assert "learned with the decoder in the distillation" in section(page, "Overview")
+    assert "- **rollout files**: 2 (CMU_016_22.hdf5, CMU_013_11.hdf5)" in section(page, "Training")
+    assert "- **steps**: 7700" in section(page, "Training") and "/runs/" not in page
+    assert section(page, "Provenance").lstrip().startswith("Learned with its decoder by `mocap-hierarchy distill train")
+    assert "log standard deviation" in section(page, "Limitations")
+    fitted = LatentPrior.for_decoder(decoder, hidden_layers=(16,))
+    fitted.spec = dataclasses.replace(fitted.spec, provenance={"samples": 900})
+    page = card_page(fitted.save(tmp_path / "fitted.safetensors"))
+    assert "fitted to the latents the multi-clip policy's encoder chose" in section(page, "Overview")
+    assert "- **samples**: 900" in section(page, "Training") and "rollout files" not in page
+    assert section(page, "Provenance").lstrip().startswith("Fitted with `mocap-hierarchy decoder fit-prior`")
+    assert "The file holds the mean only" in section(page, "Limitations")
 
 
 @pytest.mark.parametrize("name", SHIPPED[-1:])
@@ -192,8 +216,12 @@ def test_scores_show_the_multi_clip_policys_tracking_metrics_where_its_evaluatio
 
 
 def test_a_prior_packaged_with_its_float16_decoder_fits_it_and_keeps_its_weights(tmp_path, capsys):
-    source = small_decoder().save(tmp_path / "source.safetensors")
+    made_here = {"dataset": ["/home/me/runs/dataset/CMU_016_22.hdf5", "runs/dataset/CMU_013_11.hdf5"], "steps": 20}
+    decoder = small_decoder()
+    decoder.spec = dataclasses.replace(decoder.spec, provenance=made_here)
+    source = decoder.save(tmp_path / "source.safetensors")
     prior = LatentPrior.for_decoder(load_decoder(source), hidden_layers=(16,), stochastic=True)
+    prior.spec = dataclasses.replace(prior.spec, provenance=made_here)
     prior_file = prior.save(tmp_path / "prior.safetensors")
     card_json = tmp_path / "card.json"
     card_json.write_text(json.dumps({"summary": "a small decoder"}))
@@ -207,6 +235,9 @@ def test_a_prior_packaged_with_its_float16_decoder_fits_it_and_keeps_its_weights
     bound = load_latent_prior(prior_out)
     bound.check_fits(packaged)
     assert bound.spec.provenance["packaged_from"] == load_decoder(source).behaviour_sha256()
+    shared = {"dataset": ["CMU_016_22.hdf5", "CMU_013_11.hdf5"], "steps": 20}  # rollout files by name, not path
+    assert bound.spec.provenance == {**shared, "packaged_from": bound.spec.provenance["packaged_from"]}
+    assert {k: v for k, v in packaged.spec.provenance.items() if k != CARD_KEY} == shared
     for name, tensor in prior.state_dict().items():
         assert torch.equal(bound.state_dict()[name], tensor), name
     # A prior fitted for another decoder is refused before anything is written; one flag alone is refused.
@@ -217,3 +248,11 @@ def test_a_prior_packaged_with_its_float16_decoder_fits_it_and_keeps_its_weights
     assert main([*never, "--prior", str(prior_file)]) == 2
     assert "--prior-out" in capsys.readouterr().err
     assert not list(tmp_path.glob("never*"))
+
+
+def test_a_card_names_rollout_files_recorded_as_paths_by_their_names(tmp_path):
+    decoder = small_decoder()
+    made_here = ["/home/me/runs/dataset/SYN_stand.hdf5", "/home/me/runs/dataset/SYN_wave.hdf5"]
+    decoder.spec = dataclasses.replace(decoder.spec, provenance={"dataset": made_here, "steps": 20})
+    page = card_page(decoder.save(tmp_path / "decoder.safetensors"))  # a file written before packaging named them
+    assert "- **dataset**: SYN_stand.hdf5, SYN_wave.hdf5" in section(page, "Provenance") and "/home/me" not in page

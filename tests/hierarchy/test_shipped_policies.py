@@ -209,7 +209,10 @@ def test_transfer_eval_record_export_and_card_take_a_shipped_name(shipped, tmp_p
     assert (tmp_path / "policy.onnx").is_file()
 
 
-def test_an_unknown_name_lists_the_shipped_policies(shipped, capsys):
+def test_an_unknown_name_lists_the_shipped_policies(shipped, capsys, monkeypatch, tmp_path):
+    import distill.npmp.shipped as multi_clip_shelf
+
+    monkeypatch.setattr(multi_clip_shelf, "SHIPPED_POLICIES_FOLDER", tmp_path / "none")  # decoders and task policies
     with pytest.raises(FileNotFoundError, match=f"shipped task policies: {NAME}"):
         load_task_policy("tiny-v1/go_to_target")
     assert main(["transfer", "eval", "tiny-v1/go_to_target", "--episodes", "1"]) == 2

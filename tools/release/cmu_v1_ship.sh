@@ -3,8 +3,9 @@
 # runs/release-cmu-v1/release_results.json): packages the expert group again from its runs, writes the cards of the decoder and its prior, the multi-clip policy and
 # the task policies from the runs' files (python -m tools.release.release_cards), then packages, each with its card:
 # the decoder cmu-v1 (float16) with its learned prior bound to it, the multi-clip policy cmu-v1 (float16, refused if
-# that changes an action by more than 0.002), and the task policies on cmu-v1 (TASKS; by default go-to-target, and
-# velocity control where it follows its commands: speed slope >= 0.5 and more reward per step than standing still).
+# that changes an action by more than 0.002), and the task policies on cmu-v1 that follow their commands (TASKS
+# names others: velocity control follows with a speed slope >= 0.5 and more reward per step than standing still,
+# go-to-target with a heading cosine >= 0.5).
 # Last, the release's figures go where the results page quotes them (docs/results/release_cmu_v1.json).
 # Read the cards it wrote before committing; after editing one, rerun this script: every file is written again from
 # the same runs (same weights, new card). Nothing is trained or downloaded; about 3 minutes of CPU.
@@ -41,22 +42,27 @@ mocap-hierarchy decoder package "$runs/distill/decoder.safetensors" "$dest/hiera
 mocap-hierarchy distill package "$runs/distill" "$dest/distill/npmp/pretrained/$name.safetensors" \
     --card "$dest/distill/npmp/cards/$name.card.json" --scores "$runs/eval_seen_noisy.json"
 
-# 3. The task policies that ship, after the decoder so that they name it.
-follows=$(python -c 'import json, sys; print(json.load(open(sys.argv[1]))["shipped"]["velocity_control"]["follows_commands"])' \
-    "$results")
-default_tasks="go_to_target"
-[ "$follows" = True ] && default_tasks="velocity_control go_to_target"
-if [ "$follows" != True ] && [ -z "${TASKS:-}" ]; then
-    echo "the velocity-control policy on $name does not follow its commands: it does not ship (nor its card)"
-    rm -f "$cards/policies/$name/velocity_control.card.json"
-fi
+# 3. The task policies that ship, after the decoder so that they name it: those that follow their commands
+#    (release_results.py: velocity control's speed slope >= 0.5 and more reward per step than standing still;
+#    go-to-target's heading cosine >= 0.5), or the TASKS given. A task that does not ship loses its card.
+following=$(python -c 'import json, sys
+shipped = json.load(open(sys.argv[1]))["shipped"]
+print(" ".join(task for task, figures in shipped.items() if figures["follows_commands"]))' "$results")
 mkdir -p "$dest/hierarchy/pretrained/policies/$name"
-for task in ${TASKS:-$default_tasks}; do
-    mocap-hierarchy transfer package "$runs/ship/$task/$name/seed0" \
-        "$dest/hierarchy/pretrained/policies/$name/$task.safetensors" --card "$cards/policies/$name/$task.card.json"
+for task in velocity_control go_to_target; do
+    case " ${TASKS:-$following} " in
+    *" $task "*)
+        mocap-hierarchy transfer package "$runs/ship/$task/$name/seed0" \
+            "$dest/hierarchy/pretrained/policies/$name/$task.safetensors" \
+            --card "$cards/policies/$name/$task.card.json" ;;
+    *)
+        echo "the $task policy on $name does not ship, nor its card (${TASKS:+TASKS leaves it out}${TASKS:-it does not follow its commands})"
+        rm -f "$cards/policies/$name/$task.card.json" ;;
+    esac
 done
 
-# 4. The figures the results page quotes.
+# 4. The figures the results page quotes, and its quotes of them rewritten.
 mkdir -p "$dest/docs/results"
 cp "$results" "$dest/docs/results/release_cmu_v1.json"
+[ "$dest" = . ] && python tools/quoted_values.py docs/results/release_cmu_v1.json  # the pages' quotes of it
 echo "shipped under $dest: read the cards (git diff), then the checklist 'Shipping it' of docs/guides/real-release.md"

@@ -28,6 +28,10 @@ FOLLOWS_SLOPE = 0.5
 """The speed slope from which a velocity-control policy counts as following its commands (with more reward per step
 than standing still)."""
 
+FOLLOWS_HEADING = 0.5
+"""The heading cosine from which a go-to-target policy counts as heading for its targets (its motion within 60 degrees
+of the way to the target on average; the shipped `synthetic-v3/go_to_target`: 0.61)."""
+
 EVALUATIONS = {"velocity_control": "velocity_control_300k.json", "go_to_target": "go_to_target_300k.json"}
 """Each task's deterministic evaluations of the comparison's runs."""
 
@@ -74,13 +78,15 @@ def transfer(runs: Path) -> dict[str, Any]:
 
 
 def shipped(runs: Path) -> dict[str, Any]:
-    """The shipped task policies' evaluations."""
+    """The shipped task policies' evaluations, each judged: does it follow its commands (the bar for shipping it)."""
     velocity = shipped_figures(read_json(runs / "ship_velocity_control.json"))
     # the issue's bar for shipping a velocity policy: it follows the speed (slope 0.5) and beats standing still
     follows = velocity["slope"] >= FOLLOWS_SLOPE and velocity["reward_per_step"] > velocity["still_reward_per_step"]
+    target = shipped_figures(read_json(runs / "ship_go_to_target.json"))
+    heads_for_targets = target["heading_cosine"] >= FOLLOWS_HEADING
     return {
         "velocity_control": {**velocity, "follows_commands": follows},
-        "go_to_target": shipped_figures(read_json(runs / "ship_go_to_target.json")),
+        "go_to_target": {**target, "follows_commands": heads_for_targets},
     }
 
 
