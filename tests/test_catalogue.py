@@ -36,8 +36,7 @@ def on_disk() -> set[tuple[str, str]]:
 def test_the_catalogue_lists_every_shipped_file_of_every_kind():
     listed = {(e.kind, e.path.resolve().relative_to(ROOT).as_posix()) for e in catalogue().entries()}
     assert listed == on_disk()
-    not_yet = {"multi-clip policy"}  # the first ships with the real release (cmu-v1)
-    assert {kind for kind, _ in listed} == set(KINDS) - not_yet  # every other kind ships an artifact today
+    assert {kind for kind, _ in listed} == set(KINDS)  # every kind ships an artifact today
 
 
 def test_names_are_unique_within_a_kind_and_shared_across_kinds_only_as_today():
@@ -48,6 +47,7 @@ def test_names_are_unique_within_a_kind_and_shared_across_kinds_only_as_today():
         "synthetic-v2": ["decoder", "latent prior"],
         "synthetic-v3": ["decoder", "expert group", "latent prior", "motion GPT"],
         "cmu-locomotion-v1": ["expert group", "clip library"],  # the experts on the library's snippets
+        "cmu-v1": ["decoder", "multi-clip policy", "latent prior"],  # the whole policy ships beside its decoder
     }
 
 
@@ -146,10 +146,18 @@ def test_an_existing_path_wins_over_a_name(tmp_path, monkeypatch):
         build_rollout("tracking", "synthetic-v1")
 
 
+def test_a_kind_with_nothing_shipped_is_left_out_of_a_hint_unless_every_kind_is_empty():
+    from foundation.shipped import Catalogue, ListedArtifacts
+
+    listed = Catalogue([ListedArtifacts("decoder", {"d1": Path("d1")}), ListedArtifacts("motion GPT", {})])
+    assert listed.hint("decoder", "motion GPT") == "shipped decoders: d1"
+    assert listed.hint("motion GPT") == "no motion GPT is shipped with this installation"
+
+
 def test_an_unknown_policy_lists_the_names_record_takes():
     hint = catalogue().hint("decoder", "multi-clip policy", "task policy", "expert")
-    assert hint.startswith("shipped decoders: synthetic-v1") and "(groups, each naming all its experts" in hint
-    assert "multi-clip" not in hint and "; shipped task policies: " in hint  # a kind with nothing shipped: unsaid
+    assert hint.startswith("shipped decoders: cmu-v1, synthetic-v1") and "(groups, each naming all its experts" in hint
+    assert "; shipped multi-clip policies: cmu-v1; shipped task policies: " in hint
     with pytest.raises(FileNotFoundError) as error:
         build_rollout("tracking", "nope")
     assert (

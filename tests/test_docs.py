@@ -230,6 +230,7 @@ def test_model_cards_are_rendered_from_the_shipped_files():
     from distill.experts.files import ExpertDir
     from distill.experts.shipped import shipped_experts
     from distill.gpt.shipped import shipped_gpts
+    from distill.npmp.shipped import shipped_policies
     from hierarchy.cards.markdown import SECTIONS
     from hierarchy.cards.model_card import card_of
     from hierarchy.cards.page import card_page
@@ -248,7 +249,8 @@ def test_model_cards_are_rendered_from_the_shipped_files():
     }
     files.update(experts)
     files.update({f"gpt-{name}.md": path for name, path in shipped_gpts().items()})
-    assert set(pages) == set(files)
+    files.update({f"multi-clip-{name}.md": path for name, path in shipped_policies().items()})
+    assert "multi-clip-cmu-v1.md" in files and set(pages) == set(files)
     for page_name, path in files.items():
         page = pages[page_name]
         assert page == card_page(path, generated_pages.doc_links())  # the renderer of `decoder card`

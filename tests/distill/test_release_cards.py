@@ -102,7 +102,7 @@ def test_the_cards_carry_the_runs_figures_and_pass_the_card_check(tools, release
     assert "tracks 0.97 of its snippets" in noisy
     assert "On 3 snippets of 2 trials of `cmu-locomotion-v1` it never saw: success 0.25, G-MPJPE 260 mm" in unseen
     assert "(on its own snippets, deterministic: 0.90, 110 mm, 0.98)" in unseen
-    assert "for 320 control steps on average (goal: 300" in survival
+    assert "for 320 control steps on average (meeting the goal of 300" in survival
     assert policy["notes"] == decoder["notes"][:3] and "--scores" in policy["commands"][-1]
     assert (
         task["scores"]["speed slope"] == 0.612
@@ -111,6 +111,7 @@ def test_the_cards_carry_the_runs_figures_and_pass_the_card_check(tools, release
     assert task["budgets"]["wall time"].startswith("35 minutes (2100 s)")  # 1200 s, then 900 s after the resume
     assert task["budgets"]["training return at the end"] == "30.0 (episode mean, the task's own reward)"
     assert "2 x 256, step size 3e-4" in task["budgets"]["steps"]
+    assert task["summary"].endswith("slope 0.61, heading cosine 0.80; it keeps the humanoid up 15.4 s on average.")
 
 
 def test_a_missing_measurement_names_the_script_that_writes_it(tools, release, tmp_path):
@@ -167,3 +168,20 @@ def test_the_results_file_averages_each_decoders_seeds_and_judges_the_shipped_po
     judged = release_results.release_results(runs)["shipped"]
     assert results["shipped"]["go_to_target"]["follows_commands"]  # heading cosine 0.6: heads for its targets
     assert not judged["velocity_control"]["follows_commands"] and not judged["go_to_target"]["follows_commands"]
+
+
+def test_a_resumed_distillations_time_adds_up_its_runs_from_their_logs(tools, tmp_path):
+    from torch.utils.tensorboard import SummaryWriter
+
+    release_cards, _ = tools
+    folder = tmp_path / "distill"
+    for start, steps in ((1000.0, range(50, 2650, 50)), (9000.0, range(2550, 7750, 50))):  # 2 runs of a resumed one
+        writer = SummaryWriter(str(folder / "tensorboard"), filename_suffix=f".{int(start)}")
+        for i, step in enumerate(steps):
+            writer.add_scalar("loss", 1.0, step, walltime=start + 2.0 * i)
+        writer.close()
+    summary = {"resumed_from": 2500, "seconds": 3100.0}  # the resumed run's own time
+    # 51 intervals of 2 s, then 103: 308 s in all
+    assert release_cards.distillation_time(folder, summary) == "5 minutes (308 s) over 2 runs (resumed at step 2,500)"
+    assert release_cards.distillation_time(folder, {"seconds": 300.0}) == "5 minutes (300 s)"  # never resumed
+    assert release_cards.distillation_time(tmp_path / "none", summary) == "52 minutes (3100 s)"  # no logs

@@ -58,14 +58,7 @@ v3=$!
 trap 'for job in $(jobs -p); do pkill -P "$job"; kill "$job"; done 2> /dev/null || true' EXIT
 
 # 1. The expert group: a card from each run, then the packaged directory (float16, pickle-free).
-for run in $experts/*/; do
-    snippet=$(basename "$run")
-    [ -f "$run/done.json" ] || continue
-    card=$cards/$snippet.card.json
-    [ -f "$card" ] || python tools/release/expert_card.py "$run" --group $group --clips $group --out "$card"
-    [ -d "$pretrained/$snippet" ] ||
-        mocap-hierarchy expert package "$run" "$pretrained" --card "$card" --clips $group
-done
+tools/release/package_experts.sh "$experts" "$pretrained" "$cards" $group
 
 # 2. Their rollouts (the paper's A.2 layout), as for synthetic-v3: 20 episodes from the start, 80 from random frames.
 # shellcheck disable=SC2086  # ROLLOUTS holds several flags
