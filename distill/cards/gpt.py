@@ -20,7 +20,6 @@ fraction of episodes that reached the step limit).
 from __future__ import annotations
 
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import distill.gpt.shipped as shipped
@@ -36,6 +35,7 @@ from hierarchy.cards.markdown import (
     float16_lines,
     interface_lines,
     net_weights,
+    rollout_files,
     runtime_lines,
     table,
     written_by,
@@ -153,7 +153,7 @@ def gpt_card(context: CardContext) -> CardPage:
             f"(`mocap-hierarchy gpt complete --gpt {context.shipped} --experts synthetic-v3`)."
         )
     provenance = context.provenance
-    data = {**card.get("data", {}), **_data_facts(provenance)}
+    data = {**card.get("data", {}), **rollout_files(provenance)}
     training = ["### Data", "", *(bullets(data) or ["The file records no training data."]), ""]
     run = {key: provenance[key] for key in ("steps", "final_loss") if key in provenance}
     run.update(card.get("budgets", {}))
@@ -201,15 +201,6 @@ def gpt_card(context: CardContext) -> CardPage:
     sections = (overview, [intended], training, inputs, artifacts, runtime, limitations)
     title = f"Motion GPT `{context.shipped or context.display}`"
     return context.page(title, sections, written_by("gpt", card), GPT_TRAINING_FACTS, commands=[])
-
-
-def _data_facts(provenance: Mapping[str, Any]) -> dict[str, Any]:
-    """The rollout files a GPT file records it was trained on, by name."""
-    dataset = provenance.get("dataset")
-    if not isinstance(dataset, list) or not dataset:
-        return {}
-    names = ", ".join(Path(str(path)).name for path in dataset[:3]) + (", ..." if len(dataset) > 3 else "")
-    return {"rollout files": f"{len(dataset)} ({names})"}
 
 
 GPT_CARD_COMMAND = "mocap-hierarchy gpt card"

@@ -14,8 +14,6 @@ The card holds the fields of :mod:`hierarchy.cards.model_card`, as a decoder's d
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import distill.npmp.shipped as shipped
@@ -33,6 +31,7 @@ from hierarchy.cards.markdown import (
     float16_lines,
     interface_lines,
     layers_text,
+    rollout_files,
     runtime_lines,
     table,
     written_by,
@@ -124,7 +123,7 @@ def _steps(ref_steps: tuple[int, ...]) -> str:
 def _training(context: CardContext) -> list[str]:
     """The Training section: data, steps and budgets, the scores (the decoder card's table)."""
     card, provenance = context.card, context.provenance
-    data = {**card.get("data", {}), **_data_facts(provenance)}
+    data = {**card.get("data", {}), **rollout_files(provenance)}
     lines = ["### Data", "", *(bullets(data) or ["The file records no training data."]), ""]
     run = {key: provenance[key] for key in POLICY_TRAINING_FACTS if key in provenance and key != "dataset"}
     run.update(card.get("budgets", {}))
@@ -134,17 +133,6 @@ def _training(context: CardContext) -> list[str]:
         "`mocap-hierarchy distill package --scores` records them in the card)."
     )
     return [*lines, "### Scores", "", *(scores_markdown(card) or [none])]
-
-
-def _data_facts(provenance: Mapping[str, Any]) -> dict[str, Any]:
-    """The rollout files a policy file records it was distilled from, by name."""
-    dataset = provenance.get("dataset")
-    if isinstance(dataset, str):
-        dataset = [dataset]
-    if not isinstance(dataset, list) or not dataset:
-        return {}
-    names = ", ".join(Path(str(path)).name for path in dataset[:3]) + (", ..." if len(dataset) > 3 else "")
-    return {"rollout files": f"{len(dataset)} ({names})"}
 
 
 def _inputs(policy: NpmpPolicy) -> list[str]:

@@ -6,7 +6,6 @@ its shipped decoder and says whether that decoder's behaviour is the one it was 
 
 from __future__ import annotations
 
-from pathlib import PurePath
 from typing import Any
 
 import hierarchy.pretrained as pretrained
@@ -20,6 +19,7 @@ from hierarchy.cards.markdown import (
     card_page_name,
     interface_lines,
     layers_text,
+    rollout_files,
     runtime_lines,
 )
 from hierarchy.cards.model_card import CARD_KEY, check_card
@@ -125,11 +125,7 @@ LEARNED = (
 def _distillation_facts(provenance: dict[str, Any]) -> dict[str, Any]:
     """A learned prior's distillation facts as its Training section lists them (rollout files by name)."""
     facts = {key: provenance[key] for key in LEARNED_TRAINING_FACTS if key in provenance and key != "dataset"}
-    dataset = provenance.get("dataset")
-    if isinstance(dataset, list) and dataset:
-        names = ", ".join(PurePath(str(path)).name for path in dataset[:3]) + (", ..." if len(dataset) > 3 else "")
-        return {"rollout files": f"{len(dataset)} ({names})", **facts}
-    return facts
+    return {**rollout_files(provenance), **facts}
 
 
 def _fit_commands(decoder: str | None) -> list[str]:

@@ -363,6 +363,17 @@ def text(value: Any) -> str:
     return str(value)
 
 
+def rollout_files(provenance: Mapping[str, Any]) -> dict[str, str]:
+    """The rollout files a file records it was trained on, by name: ``{"rollout files": "N (names, ...)"}``."""
+    dataset = provenance.get("dataset")
+    if isinstance(dataset, str):
+        dataset = [dataset]
+    if not isinstance(dataset, list) or not dataset:
+        return {}
+    names = ", ".join(Path(str(path)).name for path in dataset[:3]) + (", ..." if len(dataset) > 3 else "")
+    return {"rollout files": f"{len(dataset)} ({names})"}
+
+
 def bullets(facts: Mapping[str, Any]) -> list[str]:
     """``- **key**: value`` per fact."""
     return [f"- **{key}**: {text(value)}" for key, value in facts.items()]

@@ -24,6 +24,7 @@ import statistics
 from pathlib import Path
 from typing import Any
 
+from tasks.walker import CONTROL_TIMESTEP
 from tools.release.expert_card import training_seconds
 
 TASK_SETTINGS = {"velocity_control": "max_speed=1.5", "go_to_target": "approach_reward=10"}
@@ -129,10 +130,10 @@ def distillation_time(folder: Path, summary: dict[str, Any]) -> str:
     A resumed run's ``distill.json`` counts its own run alone, so each run's span is read from its TensorBoard log
     (first to last logged step) where the folder has them.
     """
+    from tensorboard.backend.event_processing.event_file_loader import EventFileLoader
+
     spans = []
     for events in sorted((folder / "tensorboard").glob("events.out.tfevents.*")):
-        from tensorboard.backend.event_processing.event_file_loader import EventFileLoader
-
         times = [event.wall_time for event in EventFileLoader(str(events)).Load() if event.step]
         if times:
             spans.append(times[-1] - times[0])
@@ -256,15 +257,15 @@ def shipped_figures(evaluation: dict[str, Any], label: str = "shipped") -> dict[
 TASK_OUTCOMES = {
     "velocity_control": lambda m: (
         f"speed slope {m['slope']:.2f}, heading cosine {m['heading_cosine']:.2f}; it keeps "
-        f"the humanoid up {m['steps'] * 0.03:.1f} s on average."
+        f"the humanoid up {m['steps'] * CONTROL_TIMESTEP:.1f} s on average."
     ),
     "go_to_target": lambda m: (
         f"it turns towards the target (heading cosine {m['heading_cosine']:.2f}) and closes "
-        f"{m['metres_closed']:.1f} m on it in {m['steps'] * 0.03:.1f} s on average before it falls, reaching it in "
-        f"{m['rewarded_fraction']:.0%} of the episodes."
+        f"{m['metres_closed']:.1f} m on it in {m['steps'] * CONTROL_TIMESTEP:.1f} s on average before it falls, "
+        f"reaching it in {m['rewarded_fraction']:.0%} of the episodes."
     ),
 }
-"""What each task policy's card summary says of its evaluation (control steps of 0.03 s)."""
+"""What each task policy's card summary says of its evaluation."""
 
 
 def task_policy_card(runs: Path, name: str, task: str) -> dict[str, Any]:

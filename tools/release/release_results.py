@@ -92,10 +92,11 @@ def shipped(runs: Path) -> dict[str, Any]:
 
 def release_results(runs: Path) -> dict[str, Any]:
     """Every figure of the release the results page quotes."""
+    survival = read_json(runs / "prior_survival.json")
     return {
         "multi_clip": multi_clip(runs),
-        "prior_survival_steps": prior_steps(read_json(runs / "prior_survival.json")),
-        "prior_mean_survival_steps": prior_steps(read_json(runs / "prior_survival.json"), "mean"),
+        "prior_survival_steps": prior_steps(survival),
+        "prior_mean_survival_steps": prior_steps(survival, "mean"),
         "transfer": transfer(runs),
         "shipped": shipped(runs),
     }
