@@ -3,7 +3,7 @@ r"""Does a go-to-target policy head for the target? Deterministic episodes of ea
 Runs each policy (``transfer train`` output on ``go_to_target``, with the task settings
 it was trained with, ``approach_reward`` included, though the figures leave it out)
 deterministically for ``--episodes`` episodes from seeds ``--seed``, ``--seed + 1``, ...
-and prints per policy (:class:`target_reaching_analysis.TargetReachingSummary`):
+and prints per policy (:class:`tasks.downstream.target_reaching.TargetReachingSummary`):
 control steps survived, the task's return, the fraction of episodes with any reward,
 the metres closed on the targets per episode, metres closed per second, and the mean
 cosine between the walker's motion and the direction to its target while it moves
@@ -27,9 +27,8 @@ from tqdm.auto import tqdm
 
 from foundation.atomic import write_json
 from foundation.config_cli import file_in_folder
-from hierarchy.transfer import POLICY_FILE, policy_env
-
-from target_reaching_analysis import TargetReachingSummary, run_episode, summarise
+from hierarchy.transfer import POLICY_FILE, reach_targets
+from tasks.downstream.target_reaching import TargetReachingSummary, run_episode, summarise
 
 HEADER = (
     f"{'policy':<48}{'episodes':>9}{'steps':>7}{'return':>8}{'rewarded':>9}"
@@ -47,15 +46,11 @@ def table_row(label: str, stats: TargetReachingSummary) -> str:
 
 def policy_summary(folder: Path, seeds: range, max_steps: int | None) -> TargetReachingSummary:
     """A policy's deterministic episodes on its own task settings."""
-    policy, env = policy_env(file_in_folder(folder, POLICY_FILE), task_changes=_limit(max_steps))
-    if policy.spec.task != "go_to_target":
-        raise SystemExit(f"{folder}: a policy for {policy.spec.task}, not go_to_target")
-
-    def act(observation: dict[str, np.ndarray]) -> np.ndarray:
-        return policy.act({k: v[None] for k, v in observation.items()})[0]
-
-    bar = tqdm(seeds, desc=str(folder), unit="episode", leave=False)
-    return summarise([run_episode(env, act, seed) for seed in bar])
+    try:
+        episodes = reach_targets(file_in_folder(folder, POLICY_FILE), len(seeds), seeds.start, max_steps, True)
+    except TypeError as error:
+        raise SystemExit(f"{folder}: {error}") from error
+    return summarise(episodes)
 
 
 def prior_alone_summary(

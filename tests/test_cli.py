@@ -66,6 +66,12 @@ def test_quickstart_runs_every_stage_and_resumes(clip_library, tmp_path, capsys)
     assert shipped["demo"]["planned_steps"] == 40 and 0 < shipped["demo"]["steps"] <= 40
     verify(Path(shipped["recording"]))
     assert summary["verdicts"]["shipped"]["velocity_control"]["verdict"]
+    target = summary["shipped"]["go_to_target"]  # the real decoder's task policy: 2 episodes of at most 40 steps
+    assert target["policy"] == "cmu-v1/go_to_target" and target["episodes"] == 2 and 0 < target["steps"] <= 40
+    verify(Path(target["recording"]))
+    assert 0 < frames(Path(target["recording"]))[0]["/plots/action"] == target["recorded_steps"] <= 40
+    assert "/plots/latent" in frames(Path(target["recording"]))[0]  # latents of the decoder it acts through
+    assert summary["verdicts"]["shipped"]["go_to_target"]["verdict"]
     # the real experts lead: a walk, a turn and a jump recorded tracking their snippet from its first frame
     recorded = summary["shipped"]["experts"]["recordings"]
     assert (

@@ -25,6 +25,7 @@ from mocap_hierarchy.quickstart import (
 )
 
 STAGES = [
+    "shipped_target",
     "shipped_velocity",
     "playback",
     "experts",
@@ -57,6 +58,8 @@ class FakeStages:
         (shipped / "priors" / "synthetic-v3.safetensors").write_text("the prior shipped with synthetic-v3")
         (shipped / "policies" / "synthetic-v3").mkdir(parents=True)
         (shipped / "policies" / "synthetic-v3" / "velocity_control.safetensors").write_text("a shipped policy")
+        (shipped / "policies" / "cmu-v1").mkdir()
+        (shipped / "policies" / "cmu-v1" / "go_to_target.safetensors").write_text("a shipped go-to-target policy")
         monkeypatch.setattr(pretrained, "PRETRAINED_FOLDER", shipped)
         monkeypatch.setattr(pipeline, "resolve_clip_file", lambda clips, progress: tmp_path / "clips.h5")
         monkeypatch.setattr(pipeline, "list_clips", lambda library: {"SYN_stand": 181, "SYN_wave": 196})
@@ -69,7 +72,7 @@ class FakeStages:
         monkeypatch.setattr(pipeline, "_experts_digest", lambda names: dict.fromkeys(names, "digest"))
         self.shipped_gpt: Path | None = None  # no GPT ships unless a test says so
         monkeypatch.setattr(pipeline, "shipped_gpt_file", lambda name: self.shipped_gpt)
-        shipped = ("shipped_velocity", "shipped_experts", "shipped_gpt")
+        shipped = ("shipped_target", "shipped_velocity", "shipped_experts", "shipped_gpt")
         stages = (*shipped, "playback", "experts", "dataset", "distill", "transfer")
         for name in (*stages, "record", "plots"):
             monkeypatch.setattr(pipeline, f"{name}_stage", getattr(self, f"_{name}"))
@@ -83,6 +86,11 @@ class FakeStages:
         self._call("shipped_velocity")
         recording.write_text("")
         return shipped_velocity_run(str(recording))
+
+    def _shipped_target(self, recording: Path, config):
+        self._call("shipped_target")
+        recording.write_text("")
+        return shipped_target_run(str(recording))
 
     def _shipped_experts(self, out: Path, config):
         self._call("shipped_experts")
@@ -204,21 +212,21 @@ def test_a_killed_stage_runs_again_and_the_finished_ones_are_read(fakes, tmp_pat
     with pytest.raises(KeyboardInterrupt):
         run_quickstart(tiny(tmp_path))
     killed = json.loads((tmp_path / "qs" / "stages" / "runs.json").read_text())
-    assert killed[0]["stages_run"] == ["shipped_velocity", "playback", "experts", "dataset"]
+    assert killed[0]["stages_run"] == ["shipped_target", "shipped_velocity", "playback", "experts", "dataset"]
     assert not killed[0]["finished"]
     assert not (tmp_path / "qs" / "stages" / "distill.json").exists()
     fakes.fail_in = None
     summary = run_quickstart(tiny(tmp_path))
     assert fakes.calls["shipped_velocity"] == fakes.calls["playback"] == fakes.calls["experts"] == 1
     assert fakes.calls["dataset"] == 1 and fakes.calls["distill"] == 2 and fakes.calls["plots"] == 1
-    assert summary["runs"][1]["stages_run"] == STAGES[4:]
+    assert summary["runs"][1]["stages_run"] == STAGES[STAGES.index("distill") :]
     assert summary["seconds"] == pytest.approx(summary["runs"][0]["seconds"] + summary["runs"][1]["seconds"])
 
 
 def test_changed_settings_rerun_only_the_stages_they_feed(fakes, tmp_path):
     run_quickstart(tiny(tmp_path))
     summary = run_quickstart(tiny(tmp_path, transfer_steps=4096))
-    assert summary["runs"][1]["stages_run"] == STAGES[5:]
+    assert summary["runs"][1]["stages_run"] == STAGES[STAGES.index("transfer_decoder") :]
     assert summary["seconds"] == summary["runs"][1]["seconds"]  # a new job: the first run had other settings
 
 
@@ -352,6 +360,23 @@ def shipped_velocity_run(recording: str = "s.rrd", slope: float = 0.8, mean_retu
         "speed": {**speed(slope, still=0.5), "episodes": 20},
         "demo": {"speeds": [0.4, 0.8, 1.2], "steps": 786, "planned_steps": 1000, "segments": segments},
         "recording": recording,
+    }
+
+
+def shipped_target_run(recording: str = "t.rrd", heading_cosine: float = 0.67) -> dict:
+    """The shipped go-to-target stage's result: 20 episodes of 66 steps, one recorded."""
+    return {
+        "policy": "cmu-v1/go_to_target",
+        "episode_limit": 1000,
+        "episodes": 20,
+        "steps": 65.5,
+        "task_return": 1.56,
+        "rewarded_fraction": 0.15,
+        "metres_closed": 1.01,
+        "approach_speed": 0.52,
+        "heading_cosine": heading_cosine,
+        "recording": recording,
+        "recorded_steps": 71,
     }
 
 
@@ -658,3 +683,34 @@ def test_the_gpt_verdict_compares_with_the_longer_moving_baseline(gpt, prior, ho
     summary["shipped"]["gpt"] = shipped_gpt_run(gpt=gpt, prior=prior, hold=hold)
     verdict = summary_verdicts(summary)["shipped"]["gpt"]
     assert verdict["verdict"] == words and verdict["moving_seconds"]["gpt"] == pytest.approx(gpt * 0.03)
+
+
+@pytest.mark.parametrize(
+    ("cosine", "words"),
+    [(0.67, "heads for its targets"), (0.3, "does not head for its targets"), (math.nan, "does not head for its")],
+)
+def test_the_go_to_target_verdict_reads_the_heading_cosine(cosine, words, capsys):
+    summary = fabricated_summary(shipped=shipped_velocity_run())
+    summary["shipped"]["go_to_target"] = shipped_target_run(heading_cosine=cosine)
+    summary["verdicts"] = summary_verdicts(summary)
+    verdict = summary["verdicts"]["shipped"]["go_to_target"]
+    assert verdict["verdict"].startswith(words) and verdict["heads_from_cosine"] == 0.5
+    print_summary(summary)
+    out = capsys.readouterr().out
+    assert f"go-to-target (cmu-v1/go_to_target): {verdict['verdict']} (heading cosine {cosine:.2f}, needs 0.5" in out
+    assert "within 1 m of a target in 15% of 20 episodes, 66 steps up" in out
+    # the real decoder's policy is shown before the synthetic velocity-control one, and its recording is listed
+    assert out.index("go-to-target, cmu-v1/go_to_target") < out.index("velocity control, synthetic-v3")
+    assert "recordings: t.rrd, s.rrd, d.rrd, j.rrd" in out
+
+
+def test_a_new_go_to_target_policy_reruns_its_stage_alone_and_a_missing_one_is_named(fakes, tmp_path):
+    run_quickstart(tiny(tmp_path))
+    assert fakes.calls["shipped_target"] == 1
+    policy = pretrained.PRETRAINED_FOLDER / "policies" / "cmu-v1" / "go_to_target.safetensors"
+    policy.write_text("another go-to-target policy")
+    summary = run_quickstart(tiny(tmp_path))
+    assert fakes.calls["shipped_target"] == 2 and fakes.calls["shipped_velocity"] == 1
+    assert summary["runs"][-1]["stages_run"] == ["shipped_target"]
+    with pytest.raises(FileNotFoundError, match="shipped_target_policy 'cmu-v9/go_to_target' is neither"):
+        run_quickstart(tiny(tmp_path / "other", shipped_target_policy="cmu-v9/go_to_target"))

@@ -8,7 +8,7 @@
 * :mod:`hierarchy.transfer.task_source`: where the environments come from (:class:`TaskSource`);
 * :mod:`hierarchy.transfer.loading`: a policy file with its decoder, latent prior and
   environment (:func:`policy_env`);
-* :mod:`hierarchy.transfer.evaluation`: :func:`evaluate_transfer` and :func:`track_speed`.
+* :mod:`hierarchy.transfer.evaluation`: :func:`evaluate_transfer`, :func:`track_speed` and :func:`reach_targets`.
 
 Importing this package loads nothing heavy: each name is imported when first used.
 """
@@ -19,7 +19,7 @@ from foundation.lazy import lazy_exports
 
 if TYPE_CHECKING:  # the names for type checkers; at run time each loads on first use
     from hierarchy.transfer.config import RESUME_FREE_FIELDS, SB3_RETURN_KEY, TASK_RETURN_KEY, TransferConfig
-    from hierarchy.transfer.evaluation import EvaluationSummary, evaluate_transfer, track_speed
+    from hierarchy.transfer.evaluation import EvaluationSummary, evaluate_transfer, reach_targets, track_speed
     from hierarchy.transfer.loading import load_policy_and_decoder, load_policy_prior, policy_env
     from hierarchy.transfer.run_folder import CHECKPOINT_DIR, POLICY_FILE, TASK_RETURNS_FILE, TaskReturns
     from hierarchy.transfer.task_source import TaskSource, make_task_env
@@ -41,6 +41,7 @@ __all__ = [
     "load_policy_prior",
     "make_task_env",
     "policy_env",
+    "reach_targets",
     "track_speed",
     "train_transfer",
 ]
@@ -63,6 +64,7 @@ __getattr__, __dir__ = lazy_exports(
         "load_policy_prior": "hierarchy.transfer.loading",
         "make_task_env": "hierarchy.transfer.task_source",
         "policy_env": "hierarchy.transfer.loading",
+        "reach_targets": "hierarchy.transfer.evaluation",
         "track_speed": "hierarchy.transfer.evaluation",
         "train_transfer": "hierarchy.transfer.training",
     },

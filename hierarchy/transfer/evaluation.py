@@ -1,4 +1,4 @@
-"""A trained task policy run deterministically: the task's returns, and commanded against actual speed."""
+"""A trained task policy run deterministically: the task's returns, commanded against actual speed, targets reached."""
 
 from __future__ import annotations
 
@@ -11,7 +11,9 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from hierarchy.transfer.loading import policy_env
-from tasks.downstream.speed_tracking import SpeedEpisode, run_episode
+from tasks.downstream import speed_tracking, target_reaching
+from tasks.downstream.speed_tracking import SpeedEpisode
+from tasks.downstream.target_reaching import TargetEpisode
 
 
 @dataclass(frozen=True)
@@ -119,6 +121,71 @@ def track_speed(
     Raises:
         TypeError: The policy's task is not velocity control.
     """
+    return _deterministic_episodes(
+        speed_tracking.run_episode,
+        "speed tracking",
+        policy_path,
+        episodes,
+        seed,
+        max_steps,
+        progress,
+        decoder_path,
+        latent_prior_path,
+    )
+
+
+def reach_targets(
+    policy_path: str | os.PathLike,
+    episodes: int = 30,
+    seed: int = 1000,
+    max_steps: int | None = None,
+    progress: bool = False,
+    decoder_path: str | os.PathLike | None = None,
+    latent_prior_path: str | os.PathLike | None = None,
+) -> list[TargetEpisode]:
+    """Runs a go-to-target policy deterministically and reads where the walker went against its targets.
+
+    Summarise the episodes with :func:`tasks.downstream.target_reaching.summarise`. The episodes run on the
+    task settings the policy was trained with; their returns are the task's own reward (no ``approach_reward``).
+
+    Args:
+        policy_path: A ``policy.safetensors`` trained on go-to-target, or a shipped one's name
+            (``cmu-v1/go_to_target``).
+        episodes: Episodes to run (seeds ``seed``, ``seed + 1``, ...).
+        seed: Seed of the first episode.
+        max_steps: Override of the task's episode limit.
+        progress: Show a progress bar over the episodes.
+        decoder_path: Override of the decoder file's location (or a shipped decoder's name).
+        latent_prior_path: Override of the latent prior file's location.
+
+    Raises:
+        TypeError: The policy's task is not go-to-target.
+    """
+    return _deterministic_episodes(
+        target_reaching.run_episode,
+        "target reaching",
+        policy_path,
+        episodes,
+        seed,
+        max_steps,
+        progress,
+        decoder_path,
+        latent_prior_path,
+    )
+
+
+def _deterministic_episodes(
+    run_episode: Callable,
+    label: str,
+    policy_path: str | os.PathLike,
+    episodes: int,
+    seed: int,
+    max_steps: int | None,
+    progress: bool,
+    decoder_path: str | os.PathLike | None,
+    latent_prior_path: str | os.PathLike | None,
+) -> list:
+    """``run_episode(env, act, seed)`` for each of ``episodes`` seeds, the policy acting deterministically."""
     if episodes < 1:
         raise ValueError("episodes must be at least 1")
     changes = {"max_steps": max_steps} if max_steps is not None else None
@@ -127,5 +194,5 @@ def track_speed(
     def act(observation: dict[str, np.ndarray]) -> np.ndarray:
         return policy.act({k: v[None] for k, v in observation.items()})[0]
 
-    bar = tqdm(range(episodes), desc="speed tracking (deterministic)", unit="episode", disable=not progress)
+    bar = tqdm(range(episodes), desc=f"{label} (deterministic)", unit="episode", disable=not progress)
     return [run_episode(env, act, seed + episode) for episode in bar]

@@ -34,6 +34,8 @@ class QuickstartConfig:
         demo_speeds: The speeds (m/s) its demonstration commands in order, one command period each.
         skill_episodes: Deterministic episodes of the shipped policy's evaluation (times ``scale``).
         skill_steps: Step limit of those episodes and of the demonstration (1000 steps = 30 s).
+        shipped_target_policy: The shipped go-to-target policy shown on the real decoder (a shipped name or a
+            policy file): ``skill_episodes`` deterministic episodes (times ``scale``) and a recording of one.
         shipped_experts: The group of shipped snippet experts shown first, tracking their snippets
             (``skill_episodes`` episodes each, the paper's protocol); skipped when no such group ships.
         expert_recordings: Snippets of ``shipped_experts`` whose experts are recorded tracking them, from the
@@ -74,6 +76,7 @@ class QuickstartConfig:
     demo_speeds: tuple[float, ...] = (0.4, 0.8, 1.2)
     skill_episodes: int = 20
     skill_steps: int = 1000
+    shipped_target_policy: str = "cmu-v1/go_to_target"
     shipped_experts: str = "cmu-locomotion-v1"
     expert_recordings: tuple[str, ...] = ("CMU_016_22-0-82", "CMU_016_27-0-64", "CMU_013_11-0-112")
     shipped_gpt: str = "synthetic-v3"

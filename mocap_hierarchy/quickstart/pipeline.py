@@ -21,6 +21,7 @@ from mocap_hierarchy.quickstart.shipped import (
     shipped_experts_stage,
     shipped_gpt_file,
     shipped_gpt_stage,
+    shipped_target_stage,
     shipped_velocity_stage,
 )
 from mocap_hierarchy.quickstart.stages import (
@@ -170,7 +171,7 @@ def _run_stages(config: QuickstartConfig, out: Path, stages: StageRunner) -> dic
 
 
 def _shipped_stages(config: QuickstartConfig, out: Path, stages: StageRunner, pick: Picker) -> dict[str, Any]:
-    """The shipped skills' stages: the shipped experts (when their group ships), velocity control, the GPT."""
+    """The shipped skills' stages: the experts (when their group ships), go-to-target, velocity control, the GPT."""
     shipped: dict[str, Any] = {}
     experts_shipped = shipped_expert_names(config.shipped_experts)
     if experts_shipped:
@@ -185,12 +186,22 @@ def _shipped_stages(config: QuickstartConfig, out: Path, stages: StageRunner, pi
             functools.partial(shipped_experts_stage, out, config),
             outputs=lambda result: list(result["recordings"].values()),
         )
+    shipped["go_to_target"] = stages.run(
+        "shipped_target",
+        "shipped go-to-target policy",
+        {
+            **pick("shipped_target_policy", "skill_episodes", "skill_steps", "scale", "seed"),
+            "policy": _policy_digest(config.shipped_target_policy, "shipped_target_policy"),
+        },
+        functools.partial(shipped_target_stage, out / "shipped_go_to_target.rrd", config),
+        outputs=lambda result: [result["recording"]],
+    )
     shipped["velocity_control"] = stages.run(
         "shipped_velocity",
         "shipped velocity-control policy",
         {
             **pick("shipped_velocity_policy", "demo_speeds", "skill_episodes", "skill_steps", "scale", "seed"),
-            "policy": _policy_digest(config),
+            "policy": _policy_digest(config.shipped_velocity_policy, "shipped_velocity_policy"),
         },
         functools.partial(shipped_velocity_stage, out / "shipped_velocity_control.rrd", config),
         outputs=lambda result: [result["recording"]],
@@ -245,19 +256,18 @@ def _experts_digest(names: list[str]) -> dict[str, str]:
     return {name: file_sha256(min(resolve_experts(name).rglob("*.safetensors"))) for name in names}
 
 
-def _policy_digest(config: QuickstartConfig) -> str:
-    """The SHA-256 of the shipped velocity-control policy's file (a new file reruns its stage).
+def _policy_digest(policy: str, setting: str) -> str:
+    """The SHA-256 of a shipped task policy's file (a new file reruns its stage).
 
     Raises:
-        FileNotFoundError: ``shipped_velocity_policy`` names neither a shipped policy nor a file.
+        FileNotFoundError: ``policy`` (the value of ``setting``) names neither a shipped policy nor a file.
     """
     from hierarchy.pretrained import resolve_task_policy, task_policies_hint
 
-    path = resolve_task_policy(config.shipped_velocity_policy)
+    path = resolve_task_policy(policy)
     if not path.is_file():
         raise FileNotFoundError(
-            f"shipped_velocity_policy {config.shipped_velocity_policy!r} is neither a task policy file nor a shipped "
-            f"name ({task_policies_hint()})"
+            f"{setting} {policy!r} is neither a task policy file nor a shipped name ({task_policies_hint()})"
         )
     return file_sha256(path)
 

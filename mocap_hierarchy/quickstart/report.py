@@ -18,6 +18,8 @@ def print_summary(summary: dict) -> None:
         print("\nSHIPPED SKILLS (trained far longer than this run; loaded by name, nothing downloaded)")
         if "experts" in shipped:
             _print_shipped_experts(shipped["experts"])
+        if "go_to_target" in shipped:
+            _print_shipped_target(shipped["go_to_target"])
         _print_shipped_velocity(shipped["velocity_control"])
         if "gpt" in shipped:
             _print_shipped_gpt(shipped["gpt"])
@@ -93,6 +95,13 @@ def print_summary(summary: dict) -> None:
                 f"  snippet experts ({experts['group']}): {experts['verdict']} (mean normalised length "
                 f"{experts['mean_length']:.3f}, each needs {experts['tracks_from_length']:g})"
             )
+        target = verdicts["shipped"].get("go_to_target")
+        if target:
+            print(
+                f"  go-to-target ({target['policy']}): {target['verdict']} (heading cosine "
+                f"{target['heading_cosine']:.2f}, needs {target['heads_from_cosine']:g}; within 1 m of a target in "
+                f"{target['rewarded_fraction']:.0%} of {target['episodes']} episodes, {target['steps']:.0f} steps up)"
+            )
         velocity = verdicts["shipped"]["velocity_control"]
         print(
             f"  velocity control ({velocity['policy']}): {velocity['verdict']} (speed slope "
@@ -138,7 +147,9 @@ def print_summary(summary: dict) -> None:
         line += f"; {velocity['learning']}"
     print(line)
     shipped_recordings = [*shipped.get("experts", {}).get("recordings", {}).values()]
-    shipped_recordings += [shipped[name]["recording"] for name in ("velocity_control", "gpt") if name in shipped]
+    shipped_recordings += [
+        shipped[name]["recording"] for name in ("go_to_target", "velocity_control", "gpt") if name in shipped
+    ]
     recordings = [*shipped_recordings, *summary["recordings"].values()]
     print(f"\nrecordings: {', '.join(recordings)} (mocap-hierarchy view FILE)")
     print(f"plots: {', '.join(summary['plots'])}")
@@ -159,6 +170,18 @@ def _print_shipped_experts(run: dict) -> None:
             f"  {row['snippet']:<26}{row['normalized_reward']:>8.3f}{row['normalized_length']:>8.3f}"
             f"{row.get('success', float('nan')):>9.2f}{card[0]:>13}{card[1]:>13}"
         )
+
+
+def _print_shipped_target(run: dict) -> None:
+    """The shipped go-to-target policy's episodes read against their targets."""
+    print(
+        f"go-to-target, {run['policy']}: {run['episodes']} deterministic episodes (at most "
+        f"{run['episode_limit']} steps): heading cosine {run['heading_cosine']:.2f} (1: straight at the target, "
+        f"0: no preference); {run['metres_closed']:.2f} m closed on the targets per episode, "
+        f"{run['approach_speed']:.2f} m/s; within 1 m of a target in {run['rewarded_fraction']:.0%} of episodes "
+        f"(return {run['task_return']:.2f}: steps within 1 m); {run['steps']:.0f} steps up on average"
+    )
+    print(f"  recording: one episode, {run['recorded_steps']} steps ({run['recording']})")
 
 
 def _print_shipped_gpt(run: dict) -> None:

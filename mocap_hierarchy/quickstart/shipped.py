@@ -56,6 +56,33 @@ def shipped_velocity_stage(recording: Path, config: QuickstartConfig) -> dict[st
     }
 
 
+def shipped_target_stage(recording: Path, config: QuickstartConfig) -> dict[str, Any]:
+    """The shipped go-to-target policy: deterministic episodes read against their targets, then a recording.
+
+    ``config.skill_episodes`` episodes (times ``scale``, at most ``config.skill_steps`` steps each) on the task
+    settings the policy was trained with give the figures of
+    :class:`tasks.downstream.target_reaching.TargetReachingSummary`; the episode of seed ``config.seed`` is
+    recorded to ``recording``.
+    """
+    from hierarchy.transfer import reach_targets
+    from mocap_hierarchy.record import record
+    from tasks.downstream.target_reaching import summarise
+
+    name = config.shipped_target_policy
+    episodes = max(1, round(config.skill_episodes * config.scale))
+    print(f"\nshipped go-to-target policy {name}: {episodes} episodes, deterministic")
+    runs = reach_targets(name, episodes=episodes, seed=config.seed + 4000, max_steps=config.skill_steps, progress=True)
+    print("recording one episode of it heading for its targets")
+    recorded = record("go_to_target", name, recording, seed=config.seed, overrides={"max_steps": config.skill_steps})
+    return {
+        "policy": name,
+        "episode_limit": config.skill_steps,
+        **summarise(runs).as_dict(),
+        "recording": str(recording),
+        "recorded_steps": int(recorded["steps"]),
+    }
+
+
 TRACKS_LENGTH = 0.9
 """Normalised episode length from which an expert counts as tracking its snippet (1: to the end every time)."""
 

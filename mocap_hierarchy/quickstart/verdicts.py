@@ -19,6 +19,10 @@ FOLLOWS_SLOPE = 0.5
 which a policy counts as choosing its speed by the command (1: exactly; 0: one pace whatever is asked).
 """
 
+HEADS_FOR_TARGETS = 0.5
+"""Mean cosine between a go-to-target policy's motion and the way to its target from which the policy counts as
+heading for its targets (its motion within 60 degrees of that way on average; 0: no preference)."""
+
 LEVEL = 0.02
 """Relative difference within which two figures count as level."""
 
@@ -43,9 +47,10 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
       evaluation; how its return compares with the joint-target baseline's, and
       whether its training return rose (``learning``);
     - ``shipped``: the same velocity-control rule for the shipped policy (``velocity_control``),
-      in summaries that have the shipped-skills part; and, when snippet experts ship, whether they
-      track their snippets (``experts``: normalised length at least :data:`TRACKS_LENGTH` each); and, when
-      a GPT ships, whether its completions keep moving longer than both baselines' (``gpt``).
+      in summaries that have the shipped-skills part; whether the shipped go-to-target policy heads for its
+      targets (``go_to_target``: heading cosine at least :data:`HEADS_FOR_TARGETS`); and, when snippet experts
+      ship, whether they track their snippets (``experts``: normalised length at least :data:`TRACKS_LENGTH`
+      each); and, when a GPT ships, whether its completions keep moving longer than both baselines' (``gpt``).
 
     The first three judge the pipeline run at small scale; ``shipped`` judges skills trained far longer.
     """
@@ -55,6 +60,8 @@ def summary_verdicts(summary: dict) -> dict[str, Any]:
         verdicts["shipped"] = {}
         if "experts" in shipped:
             verdicts["shipped"]["experts"] = _shipped_experts_verdict(shipped["experts"])
+        if "go_to_target" in shipped:
+            verdicts["shipped"]["go_to_target"] = _shipped_target_verdict(shipped["go_to_target"])
         verdicts["shipped"]["velocity_control"] = _shipped_velocity_verdict(shipped["velocity_control"])
         if "gpt" in shipped:
             verdicts["shipped"]["gpt"] = _shipped_gpt_verdict(shipped["gpt"])
@@ -83,6 +90,21 @@ def _shipped_experts_verdict(run: dict) -> dict[str, Any]:
         "not_tracking": others,
         "tracks_from_length": TRACKS_LENGTH,
         "mean_length": sum(lengths) / len(lengths) if lengths else float("nan"),
+        "episodes": run["episodes"],
+    }
+
+
+def _shipped_target_verdict(run: dict) -> dict[str, Any]:
+    """The shipped go-to-target policy: whether it heads for its targets (heading cosine from the threshold on)."""
+    cosine = run["heading_cosine"]
+    heads = cosine >= HEADS_FOR_TARGETS  # NaN (it never moved) does not head anywhere
+    return {
+        "verdict": "heads for its targets" if heads else "does not head for its targets",
+        "policy": run["policy"],
+        "heading_cosine": cosine,
+        "heads_from_cosine": HEADS_FOR_TARGETS,
+        "rewarded_fraction": run["rewarded_fraction"],
+        "steps": run["steps"],
         "episodes": run["episodes"],
     }
 

@@ -1,4 +1,4 @@
-"""Evaluating task policies: returns, speed tracking, and the decoder a policy was trained with."""
+"""Evaluating task policies: returns, speed tracking, targets reached, and the decoder a policy was trained with."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from hierarchy.transfer import evaluate_transfer, track_speed, train_transfer
+from hierarchy.transfer import evaluate_transfer, reach_targets, track_speed, train_transfer
 
 from .test_decoder import small_decoder
 from .transfer_settings import TINY
@@ -28,6 +28,22 @@ def test_speed_tracking_replays_the_evaluation_and_keeps_the_trained_task_settin
     go_to_target = train_transfer("go_to_target", tmp_path / "gtt", decoder_file, TINY, {"max_steps": 10}, False)
     with pytest.raises(TypeError, match="velocity-control task"):
         track_speed(go_to_target, episodes=1)
+
+
+def test_target_reaching_replays_the_evaluation_on_the_trained_task_settings(tmp_path):
+    decoder_file = small_decoder().save(tmp_path / "decoder.safetensors")
+    settings = {"max_steps": 30, "arena_size": 2.0, "approach_reward": 1.0}
+    policy_file = train_transfer("go_to_target", tmp_path / "gtt", decoder_file, TINY, settings, progress=False)
+    episodes = reach_targets(policy_file, episodes=3, seed=7, max_steps=12)
+    evaluation = evaluate_transfer(policy_file, episodes=3, seed=7, max_steps=12)
+    # the task's own return (approach_reward left out) and the same episodes as the plain evaluation
+    np.testing.assert_allclose([e.task_return for e in episodes], evaluation.returns, rtol=1e-12)
+    assert [len(e.targets) for e in episodes] == evaluation.lengths
+    targets = np.concatenate([e.targets for e in episodes])  # drawn in the trained 2 m arena, not the default 8 m
+    assert np.all(np.abs(targets) <= 1.0)
+    velocity = train_transfer("velocity_control", tmp_path / "vc", decoder_file, TINY, {"max_steps": 10}, False)
+    with pytest.raises(TypeError, match="go-to-target task"):
+        reach_targets(velocity, episodes=1)
 
 
 def test_evaluation_refuses_a_different_decoder(tmp_path):

@@ -19,18 +19,11 @@ import statistics
 from pathlib import Path
 from typing import Any
 
+from mocap_hierarchy.quickstart.verdicts import FOLLOWS_SLOPE, HEADS_FOR_TARGETS
 from tools.release.release_cards import mean_over, prior_steps, read_json, shipped_figures, task_return
 
 MEASURES = ("normalized_reward", "normalized_length", "success", "global_position_error_mm")
 """The multi-clip policy's measures the page quotes, each a mean over snippets."""
-
-FOLLOWS_SLOPE = 0.5
-"""The speed slope from which a velocity-control policy counts as following its commands (with more reward per step
-than standing still)."""
-
-FOLLOWS_HEADING = 0.5
-"""The heading cosine from which a go-to-target policy counts as heading for its targets (its motion within 60 degrees
-of the way to the target on average; the shipped `synthetic-v3/go_to_target`: 0.61)."""
 
 EVALUATIONS = {"velocity_control": "velocity_control_300k.json", "go_to_target": "go_to_target_300k.json"}
 """Each task's deterministic evaluations of the comparison's runs."""
@@ -83,7 +76,7 @@ def shipped(runs: Path) -> dict[str, Any]:
     # the issue's bar for shipping a velocity policy: it follows the speed (slope 0.5) and beats standing still
     follows = velocity["slope"] >= FOLLOWS_SLOPE and velocity["reward_per_step"] > velocity["still_reward_per_step"]
     target = shipped_figures(read_json(runs / "ship_go_to_target.json"))
-    heads_for_targets = target["heading_cosine"] >= FOLLOWS_HEADING
+    heads_for_targets = target["heading_cosine"] >= HEADS_FOR_TARGETS
     return {
         "velocity_control": {**velocity, "follows_commands": follows},
         "go_to_target": {**target, "follows_commands": heads_for_targets},

@@ -4,8 +4,8 @@
 position and the target it is heading for; :func:`summarise` turns episodes into
 the figures of :class:`TargetReachingSummary`: how long the walker stays up, how
 many metres it closes on its targets, how fast, whether it moves towards them, and
-what the task pays. Not a script: ``target_reaching.py`` beside it imports it as
-``target_reaching_analysis`` and prints the figures for policy files.
+what the task pays. :func:`hierarchy.transfer.reach_targets` runs a trained policy's
+episodes; the quickstart and ``experiments/target_reaching.py`` print the figures.
 """
 
 from __future__ import annotations
