@@ -8,9 +8,9 @@ humanoid stays up under the prior's samples (``a ~ N(0, I)`` around ``mu(s)``, f
 and under its mean alone (``a = 0``), exactly as ``experiments/prior_survival.py`` does:
 
 * ``standing``: the task's own start (the baseline, measured in the same run);
-* ``snippet start``: frame 0 of one of the decoder's training snippets, with that frame's velocities;
-* ``snippet frame``: a random frame inside one of them (the distribution the experts' rollouts started from);
-* ``snippet end``: the last frame of one of them.
+* ``snippet_start``: frame 0 of one of the decoder's training snippets, with that frame's velocities;
+* ``snippet_frame``: a random frame inside one of them (the distribution the experts' rollouts started from);
+* ``snippet_end``: the last frame of one of them.
 
 The start's horizontal position and heading stay the task's own draws; only the pose and velocities
 change. Episodes cycle through the snippets (episode ``i`` takes snippet ``i mod n``).
@@ -73,9 +73,9 @@ def start_choosers(snippets: list[tuple[str, list[Pose]]]) -> dict[str, Callable
 
     return {
         "standing": lambda i: None,
-        "snippet start": lambda i: snippets[i % len(snippets)][1][0],
-        "snippet frame": random_frame,
-        "snippet end": lambda i: snippets[i % len(snippets)][1][-1],
+        "snippet_start": lambda i: snippets[i % len(snippets)][1][0],
+        "snippet_frame": random_frame,
+        "snippet_end": lambda i: snippets[i % len(snippets)][1][-1],
     }
 
 
