@@ -25,23 +25,20 @@ from typing import Any
 import distill.experts.shipped as shipped
 from distill.experts.files import EXPERT_FORMAT
 from foundation.interfaces import flat_observation_port, vector_port
+from hierarchy.cards.file_facts import float16_lines, net_weights
 from hierarchy.cards.markdown import (
     WALKER,
     CardContext,
     CardPage,
     artifact_lines,
     budgets_and_scores,
-    bullets,
-    float16_lines,
-    interface_lines,
-    layers_text,
-    net_weights,
     runtime_lines,
     scores_table,
     written_by,
 )
 from hierarchy.cards.model_card import check_card
 from hierarchy.cards.page import register_card_builder
+from hierarchy.cards.text import bullets, interface_lines, layers_text
 from tasks.tracking.metrics import METRIC_LABELS
 
 EXPERT_TRAINING_FACTS = ("trained_steps", "clips")

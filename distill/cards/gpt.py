@@ -25,23 +25,19 @@ from typing import Any
 import distill.gpt.shipped as shipped
 from distill.gpt.model import GPT_FORMAT
 from foundation.interfaces import flat_observation_port, vector_port
+from hierarchy.cards.file_facts import float16_lines, net_weights
 from hierarchy.cards.markdown import (
     WALKER,
     CardContext,
     CardPage,
     artifact_lines,
-    bullets,
-    commands_block,
-    float16_lines,
-    interface_lines,
-    net_weights,
     rollout_files,
     runtime_lines,
-    table,
     written_by,
 )
 from hierarchy.cards.model_card import ModelCardError, check_card
 from hierarchy.cards.page import register_card_builder
+from hierarchy.cards.text import bullets, commands_block, interface_lines, table
 from tasks.walker import CONTROL_TIMESTEP
 
 GPT_TRAINING_FACTS = ("dataset", "steps", "final_loss")

@@ -21,22 +21,19 @@ from distill.npmp.model import NORMALISERS, POLICY_FORMAT, NpmpPolicy
 from distill.npmp.policy_file import load_policy
 from foundation.interfaces import flat_observation_port, vector_port
 from hierarchy.cards.decoder import scores_markdown
+from hierarchy.cards.file_facts import float16_lines
 from hierarchy.cards.markdown import (
     WALKER,
     CardContext,
     CardPage,
     artifact_lines,
-    bullets,
     card_page_name,
-    float16_lines,
-    interface_lines,
-    layers_text,
     rollout_files,
     runtime_lines,
-    table,
     written_by,
 )
 from hierarchy.cards.page import register_card_builder
+from hierarchy.cards.text import bullets, interface_lines, layers_text, table
 from hierarchy.decoder import load_decoder
 from hierarchy.pretrained import pretrained_decoders
 

@@ -44,8 +44,9 @@ from distill.trainer import (
 )
 from foundation.config_cli import dataclass_flags
 from foundation.config_files import config_to_dict
-from hierarchy.cards.markdown import CARD_FILE, layers_text
+from hierarchy.cards.markdown import CARD_FILE
 from hierarchy.cards.page import write_card
+from hierarchy.cards.text import layers_text
 
 DECODER_FILE = "decoder.safetensors"
 POLICY_FILE = "policy.safetensors"

@@ -358,7 +358,7 @@ def snippet_experts_page() -> str:
 
 def listing_page(lines: list[str], headers: list[str], rows: list[list[str]], pages: list[str]) -> str:
     """``lines``, then the table of ``rows``, then a hidden table of contents of the card ``pages`` it links."""
-    from hierarchy.cards.markdown import table
+    from hierarchy.cards.text import table
 
     contents = ["```{toctree}", ":maxdepth: 1", ":hidden:", "", *pages, "```"]
     return "\n".join([*lines, *table(headers, rows), "", *contents, ""])
@@ -370,7 +370,8 @@ TASK_POLICIES_PAGE = "task-policies.md"
 
 def task_policies_page() -> str:
     """The shipped task policies: name, task, decoder and summary of each, linked to its card."""
-    from hierarchy.cards.markdown import card_page_name, read_file_facts
+    from hierarchy.cards.file_facts import read_file_facts
+    from hierarchy.cards.markdown import card_page_name
     from hierarchy.cards.model_card import CARD_KEY
     from hierarchy.pretrained import shipped_task_policies
 

@@ -10,20 +10,9 @@ from collections.abc import Mapping
 from typing import Any
 
 from foundation.onnx_files import ONNX_OPSET
-from hierarchy.cards.markdown import (
-    CardContext,
-    CardPage,
-    artifact_lines,
-    bullets,
-    card_page_name,
-    float16_lines,
-    interface_lines,
-    layers_text,
-    net_weights,
-    read_file_facts,
-    runtime_lines,
-    size_text,
-)
+from hierarchy.cards.file_facts import float16_lines, net_weights, read_file_facts
+from hierarchy.cards.markdown import CardContext, CardPage, artifact_lines, card_page_name, runtime_lines
+from hierarchy.cards.text import bullets, interface_lines, layers_text, size_text
 from hierarchy.decoder import DecoderSpec, load_decoder
 from hierarchy.latent_prior import shipped_priors
 from tasks.tracking.metrics import TRACKING_METRICS

@@ -15,14 +15,12 @@ from hierarchy.cards.markdown import (
     CardContext,
     CardPage,
     artifact_lines,
-    bullets,
     card_page_name,
-    interface_lines,
-    layers_text,
     rollout_files,
     runtime_lines,
 )
 from hierarchy.cards.model_card import CARD_KEY, check_card
+from hierarchy.cards.text import bullets, interface_lines, layers_text
 from hierarchy.decoder import load_decoder
 from hierarchy.latent_prior import load_latent_prior
 

@@ -1,25 +1,24 @@
-"""The parts every model card page is made of: its eight sections, file facts, tables and links.
+"""The parts every model card page is made of: its eight sections, the builder's context, shared lines and links.
 
 :mod:`hierarchy.cards.page` builds a page per kind of file (decoder, latent prior,
 task policy) from these parts; nothing here knows a kind beyond the name of its card's
 documentation page (:func:`card_page_name`). A page has the same
 sections, in the same order, whatever it describes (:data:`SECTIONS`), and reads
-nothing but the file it describes (and, for a shipped file, its shipped companion).
+nothing but the file it describes (and, for a shipped file, its shipped companion). What a file says about
+itself is :mod:`hierarchy.cards.file_facts`; the Markdown pieces (tables, bullets) are :mod:`hierarchy.cards.text`.
 """
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from foundation.fingerprints import file_sha256
-from foundation.json_fields import parse_json, require_mapping
 from foundation.provenance import shareable
-from foundation.shell_lines import wrapped_command
-from hierarchy.cards.model_card import CARD_KEY, ModelCardError
+from hierarchy.cards.file_facts import FileFacts
+from hierarchy.cards.model_card import CARD_KEY
+from hierarchy.cards.text import bullets, commands_block, size_text, table, text
 
 SECTIONS = (
     "Overview",
@@ -38,80 +37,6 @@ CARD_FILE = "MODEL_CARD.md"
 
 TESTED_WITH = {"torch": "2.13", "MuJoCo": "3.17.0", "dm_control": "1.0.50"}
 """The versions the library pins and tests with (a test keeps them equal to ``pyproject.toml``'s pins)."""
-
-_DTYPES = {"F16": "float16", "BF16": "bfloat16", "F32": "float32", "F64": "float64", "I64": "int64"}
-
-
-@dataclass(frozen=True)
-class FileFacts:
-    """What a model file says about itself without building its model.
-
-    Attributes:
-        path: The file.
-        size: Its size in bytes.
-        sha256: SHA-256 of its bytes.
-        file_format: The ``format`` of its JSON description (``mocap_hierarchy.decoder``, ...).
-        schema_version: The description's schema version.
-        description: The JSON description without ``format`` and ``schema_version``.
-        dtypes: ``{tensor: dtype}`` as stored (``float16``, ``float32``, ...).
-        shapes: ``{tensor: shape}``.
-    """
-
-    path: Path
-    size: int
-    sha256: str
-    file_format: str
-    schema_version: int
-    description: dict[str, Any]
-    dtypes: dict[str, str]
-    shapes: dict[str, tuple[int, ...]]
-
-    def parameters(self, prefix: str = "") -> int:
-        """Number of values in the tensors whose names start with ``prefix``."""
-        count = 0
-        for name, shape in self.shapes.items():
-            if name.startswith(prefix):
-                size = 1
-                for dimension in shape:
-                    size *= dimension
-                count += size
-        return count
-
-    def dtype_of(self, prefix: str) -> str:
-        """The stored dtype(s) of the tensors whose names start with ``prefix`` (``float16``, or a list)."""
-        return ", ".join(sorted({dtype for name, dtype in self.dtypes.items() if name.startswith(prefix)})) or "-"
-
-
-def read_file_facts(path: str | os.PathLike) -> FileFacts:
-    """Reads a model file's description, tensor dtypes and shapes, size and SHA-256 (no tensor is loaded).
-
-    Raises:
-        FileNotFoundError: No such file.
-        ModelCardError: Not a safetensors file with a mocap-hierarchy description.
-    """
-    from safetensors import safe_open
-
-    from foundation.described_file import METADATA_KEY
-
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"model file {path} does not exist")
-    try:
-        with safe_open(str(path), framework="pt") as handle:
-            metadata = handle.metadata() or {}
-            slices = {name: handle.get_slice(name) for name in handle.keys()}  # noqa: SIM118 (not a dict)
-            dtypes = {name: _DTYPES.get(str(part.get_dtype()), str(part.get_dtype())) for name, part in slices.items()}
-            shapes = {name: tuple(part.get_shape()) for name, part in slices.items()}
-    except Exception as failure:  # safetensors raises its own error types for corrupt headers
-        raise ModelCardError(f"{path} is not a readable safetensors file ({failure})") from None
-    if METADATA_KEY not in metadata:
-        raise ModelCardError(f"{path} has no mocap-hierarchy description, so it has no model card")
-    where = f"{path}: its description"
-    description = require_mapping(parse_json(metadata[METADATA_KEY], where, ModelCardError), where, ModelCardError)
-    file_format, version = description.pop("format", ""), description.pop("schema_version", 0)
-    if not isinstance(file_format, str) or not isinstance(version, int) or isinstance(version, bool):
-        raise ModelCardError(f"{where} names its format or schema version with values of another type; it is damaged")
-    return FileFacts(path, path.stat().st_size, file_sha256(path), file_format, version, description, dtypes, shapes)
 
 
 @dataclass(frozen=True)
@@ -153,31 +78,6 @@ def card_page_name(name: str, kind: str = "decoder") -> str:
     if kind in ("policy", "expert", "gpt", "multi-clip"):
         return f"{'task-policy' if kind == 'policy' else kind}-{name.replace('/', '-')}.md"
     return f"{name}-prior.md" if kind == "prior" else f"{name}.md"
-
-
-def float16_lines(facts: FileFacts, kind: str, command: str, where: str = "", weights: str = "net.") -> list[str]:
-    """The limitation every card of a file with float16 weights states (none for other files).
-
-    Args:
-        facts: The file's facts.
-        kind: What the file holds (``decoder``, ``expert``, ``GPT``).
-        command: The command that packaged it and printed the largest difference.
-        where: On what that difference was measured, if worth saying (`` on real token windows``).
-        weights: The prefix of the weights' tensors (``net.``; ``decoder.`` for a multi-clip policy's).
-    """
-    if facts.dtype_of(weights) != "float16":
-        return []
-    return [
-        f"- Its weights are stored as float16: its actions differ slightly from those of the float32 {kind} it was "
-        f"packaged from (`{command}` prints the largest difference{where})."
-    ]
-
-
-def net_weights(facts: FileFacts, normaliser: str) -> str:
-    """The weights of a file whose ``net.*`` tensors load as float32, however stored, and its normaliser's dtype."""
-    weights = facts.dtype_of("net.")
-    widened = " (widened to float32 on loading)" if weights != "float32" else ""
-    return f"`net.*` {weights}{widened}, normaliser {facts.dtype_of(normaliser)}"
 
 
 @dataclass(frozen=True)
@@ -347,22 +247,6 @@ def scores_table(
     return [*([str(protocol), ""] if protocol else []), *table([header, "value"], rows)]
 
 
-# ----------------------------------------------------------------------------------------------- small parts
-
-
-def text(value: Any) -> str:
-    """A JSON value as one line of Markdown text (floats to 4 significant digits, lists joined)."""
-    if isinstance(value, bool):
-        return str(value).lower()
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, list | tuple):
-        return ", ".join(text(item) for item in value)
-    if isinstance(value, Mapping):
-        return ", ".join(f"{key}: {text(item)}" for key, item in value.items())
-    return str(value)
-
-
 def rollout_files(provenance: Mapping[str, Any]) -> dict[str, str]:
     """The rollout files a file records it was trained on, by name: ``{"rollout files": "N (names, ...)"}``."""
     dataset = provenance.get("dataset")
@@ -372,69 +256,3 @@ def rollout_files(provenance: Mapping[str, Any]) -> dict[str, str]:
         return {}
     names = ", ".join(Path(str(path)).name for path in dataset[:3]) + (", ..." if len(dataset) > 3 else "")
     return {"rollout files": f"{len(dataset)} ({names})"}
-
-
-def bullets(facts: Mapping[str, Any]) -> list[str]:
-    """``- **key**: value`` per fact."""
-    return [f"- **{key}**: {text(value)}" for key, value in facts.items()]
-
-
-def table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> list[str]:
-    """A Markdown table (``|`` in cells escaped)."""
-    lines = [f"| {' | '.join(header)} |", f"|{'---|' * len(header)}"]
-    lines += [f"| {' | '.join(_cell(cell) for cell in row)} |" for row in rows]
-    return lines
-
-
-def _cell(value: Any) -> str:
-    return str(value).replace("|", "\\|")
-
-
-def shape_text(shape: Sequence[Any]) -> str:
-    """``[batch, 205]``."""
-    return f"[{', '.join(str(part) for part in shape)}]"
-
-
-def layers_text(layers: Sequence[int]) -> str:
-    """``3 x 512`` for equal layers, else ``512, 256``; ``none`` for no hidden layer."""
-    if not layers:
-        return "no hidden layer"
-    if len(set(layers)) == 1:
-        return f"{len(layers)} x {layers[0]}"
-    return ", ".join(str(size) for size in layers)
-
-
-def size_text(size: int) -> str:
-    """``1,401,024 bytes (1.40 MB)``."""
-    return f"{size:,} bytes ({size / 1e6:.2f} MB)"
-
-
-def interface_lines(interface: Mapping[str, Any]) -> list[str]:
-    """An interface in the layout of :mod:`foundation.interfaces` (``DecoderSpec.interface()``) as two tables.
-
-    The first lists each input and output with its shape, dtype and range; the second the observation's keys
-    in order, with their sizes and offsets in the flat vector.
-    """
-    rows, keys = [], []
-    for role, entries in (("input", interface.get("inputs", [])), ("output", interface.get("outputs", []))):
-        for entry in entries:
-            rows.append([role, f"`{entry['name']}`", shape_text(entry["shape"]), entry["dtype"], _range(entry)])
-            keys += entry.get("keys", [])
-    lines = table(["", "name", "shape", "dtype", "values"], rows)
-    if keys:
-        lines += ["", "The observation's keys, in input order (`offset`: where each starts in the flat vector):", ""]
-        lines += table(["key", "size", "offset"], [[f"`{k['key']}`", k["size"], k["offset"]] for k in keys])
-    return lines
-
-
-def _range(entry: Mapping[str, Any]) -> str:
-    if "bound" in entry:
-        return f"each within ±{entry['bound']:g}"
-    if "low" in entry and "high" in entry:
-        return f"each in [{entry['low']:g}, {entry['high']:g}]"
-    return entry.get("values", "raw")
-
-
-def commands_block(commands: Sequence[str]) -> list[str]:
-    """A ``bash`` block of ``commands``, each within the documentation's code column (:func:`wrapped_command`)."""
-    return ["```bash", *(line for command in commands for line in wrapped_command(command)), "```"] if commands else []

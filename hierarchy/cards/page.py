@@ -24,8 +24,9 @@ from pathlib import Path
 import hierarchy.pretrained as pretrained
 from foundation.atomic import write_text
 from hierarchy.cards.decoder import decoder_card
+from hierarchy.cards.file_facts import FileFacts, read_file_facts
 from hierarchy.cards.latent_prior import prior_card
-from hierarchy.cards.markdown import CARD_FILE, CardBuilder, CardContext, CardPage, DocLinks, FileFacts, read_file_facts
+from hierarchy.cards.markdown import CARD_FILE, CardBuilder, CardContext, CardPage, DocLinks
 from hierarchy.cards.model_card import CARD_KEY, ModelCardError, check_card
 from hierarchy.cards.task_policy import TASK_POLICY_FORMAT, task_policy_card
 from hierarchy.decoder import DECODER_FORMAT

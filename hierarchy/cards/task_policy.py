@@ -21,14 +21,12 @@ from hierarchy.cards.markdown import (
     DocLinks,
     artifact_lines,
     budgets_and_scores,
-    bullets,
     card_page_name,
-    interface_lines,
-    layers_text,
     runtime_lines,
     scores_table,
 )
 from hierarchy.cards.model_card import ModelCardError
+from hierarchy.cards.text import bullets, interface_lines, layers_text
 from hierarchy.latent_prior import shipped_priors
 
 TASK_POLICY_FORMAT = "mocap_hierarchy.task_policy"
