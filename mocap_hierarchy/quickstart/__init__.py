@@ -1,10 +1,17 @@
 """The main job on the built-in data: what the shipped skills do, then every stage of the pipeline at small scale.
 
-First, the shipped skills (loaded by name, nothing trained or downloaded):
+First, the shipped skills (loaded by name, nothing trained or downloaded; the stages are in
+:mod:`mocap_hierarchy.quickstart.shipped`):
 
+0. shipped experts: the snippet experts of ``shipped_experts`` (by default the real group
+   ``cmu-locomotion-v1``) tracking their snippets under the paper's protocol, some recorded
+   (``expert_recordings``);
+0. shipped go-to-target: the policy on the real decoder ``cmu-v1`` (``shipped_target_policy``)
+   read against its targets (the heading verdict), one episode recorded;
 0. shipped velocity control: the velocity-control policy shipped on ``synthetic-v3``
    (``shipped_velocity_policy``) evaluated on random commanded speeds (the speed-tracking
-   verdict), then walked through a sequence of commanded speeds (``demo_speeds``) and recorded.
+   verdict), then walked through a sequence of commanded speeds (``demo_speeds``) and recorded;
+0. shipped motion GPT: ``shipped_gpt`` completing its experts' snippets against two baselines.
 
 Then the pipeline, each stage with a budget far below the shipped skills' (it shows that
 every stage runs and learns, not what full budgets reach):
@@ -74,12 +81,19 @@ if TYPE_CHECKING:  # the names for type checkers; at run time each loads on firs
     )
     from mocap_hierarchy.quickstart.report import print_summary
     from mocap_hierarchy.quickstart.shipped import shipped_velocity_stage
-    from mocap_hierarchy.quickstart.verdicts import FOLLOWS_REWARD, FOLLOWS_SLOPE, LEVEL, summary_verdicts
+    from mocap_hierarchy.quickstart.verdicts import (
+        FOLLOWS_REWARD,
+        FOLLOWS_SLOPE,
+        HEADS_FOR_TARGETS,
+        LEVEL,
+        summary_verdicts,
+    )
 
 __all__ = [
     "EPISODE_LIMIT",
     "FOLLOWS_REWARD",
     "FOLLOWS_SLOPE",
+    "HEADS_FOR_TARGETS",
     "LEVEL",
     "RECORD_FORMAT",
     "STAGES_DIR",
@@ -102,6 +116,7 @@ __getattr__, __dir__ = lazy_exports(
         "EPISODE_LIMIT": "mocap_hierarchy.quickstart.config",
         "FOLLOWS_REWARD": "mocap_hierarchy.quickstart.verdicts",
         "FOLLOWS_SLOPE": "mocap_hierarchy.quickstart.verdicts",
+        "HEADS_FOR_TARGETS": "mocap_hierarchy.quickstart.verdicts",
         "LEVEL": "mocap_hierarchy.quickstart.verdicts",
         "RECORD_FORMAT": "mocap_hierarchy.quickstart.records",
         "STAGES_DIR": "mocap_hierarchy.quickstart.records",
