@@ -3,15 +3,15 @@
 First, the shipped skills (loaded by name, nothing trained or downloaded; the stages are in
 :mod:`mocap_hierarchy.quickstart.shipped`):
 
-0. shipped experts: the snippet experts of ``shipped_experts`` (by default the real group
-   ``cmu-locomotion-v1``) tracking their snippets under the paper's protocol, some recorded
-   (``expert_recordings``);
-0. shipped go-to-target: the policy on the real decoder ``cmu-v1`` (``shipped_target_policy``)
-   read against its targets (the heading verdict), one episode recorded;
-0. shipped velocity control: the velocity-control policy shipped on ``synthetic-v3``
-   (``shipped_velocity_policy``) evaluated on random commanded speeds (the speed-tracking
-   verdict), then walked through a sequence of commanded speeds (``demo_speeds``) and recorded;
-0. shipped motion GPT: ``shipped_gpt`` completing its experts' snippets against two baselines.
+- shipped experts: the snippet experts of ``shipped_experts`` (by default the real group
+  ``cmu-locomotion-v1``) tracking their snippets under the paper's protocol, some recorded
+  (``expert_recordings``);
+- shipped go-to-target: the policy on the real decoder ``cmu-v1`` (``shipped_target_policy``)
+  read against its targets (the heading verdict), one episode recorded;
+- shipped velocity control: the velocity-control policy shipped on ``synthetic-v3``
+  (``shipped_velocity_policy``) evaluated on random commanded speeds (the speed-tracking
+  verdict), then walked through a sequence of commanded speeds (``demo_speeds``) and recorded;
+- shipped motion GPT: ``shipped_gpt`` completing its experts' snippets against two baselines.
 
 Then the pipeline, each stage with a budget far below the shipped skills' (it shows that
 every stage runs and learns, not what full budgets reach):
