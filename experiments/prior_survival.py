@@ -37,6 +37,7 @@ def measure(run: Path, task: str, episodes: int, limit: int) -> dict[str, Any]:
     for name, std in (("samples", 1.0), ("mean", 0.0)):  # actions N(0, std^2) at every control step; 0: a = 0
         episodes_run = [survive(env, std, seed, limit) for seed in range(episodes)]
         result[name] = [steps for steps, _ in episodes_run]
+        result[f"{name}_steps"] = float(np.mean(result[name]))  # the mean, for pages to quote
         result[f"{name}_speed"] = float(np.mean([speed for _, speed in episodes_run]))
     return result
 
